@@ -1,0 +1,343 @@
+"""Force characteristics of the compliant elements: resistance curves f(x).
+
+An element of a leg (the axial absorber S, the hinge springs M_β and M_γ of
+(2.1)) is described by a resistance curve f(x) of its *own* deflection x
+(axial stroke δ_S in m, azimuth β in rad, polar deflection γ − γ₀ in rad).
+A positive slope means restoring. The strut (``symcushion.strut``) applies
+the orientation signs of (2.1); this module knows nothing of geometry.
+
+Each curve may carry a separate unloading branch, so that the element follows
+P = P(δ, sign δ′) as in the paper: the loading branch is active while the
+deflection grows in magnitude (x·ẋ ≥ 0), the unloading branch while it shrinks
+(x·ẋ < 0).
+
+Curves evaluate on floats and on CasADi SX/MX alike. Their parameters form a
+flat vector with names (``Curve.param_names``), so an optimiser can make them
+symbolic: pass ``theta`` (a CasADi vector) to :meth:`Curve.force`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import casadi as ca
+import numpy as np
+
+__all__ = [
+    "Curve",
+    "Linear",
+    "PiecewiseLinear",
+    "Crushable",
+    "KINK_WIDTH",
+    "RATE_WIDTH",
+]
+
+#: Default smoothing width of a knot, in units of the deflection (m or rad).
+#: Used only when a curve is built with ``smooth=True``: the kink is replaced
+#: by a hyperbola 0.5(u + sqrt(u² + w²)) that departs from the corner by at
+#: most w/2 — 1e-4 m (0.1 mm) or 1e-4 rad is well below any stroke of
+#: interest yet wide enough for Ipopt to see a continuous second derivative.
+KINK_WIDTH = 1e-4
+
+#: Default smoothing width of the loading/unloading switch, in units of x·ẋ
+#: (m²/s or rad²/s), used only with ``smooth=True``: the branch weight is
+#: 0.5(1 + tanh(x·ẋ / w)). Exact switching (``smooth=False``) is the paper's.
+RATE_WIDTH = 1e-6
+
+
+def _is_symbolic(*values) -> bool:
+    return any(isinstance(v, (ca.SX, ca.MX)) for v in values)
+
+
+def _numeric_out(value, symbolic: bool):
+    """Return a float for numeric evaluation, the expression otherwise."""
+    if symbolic:
+        return value
+    return float(ca.DM(value))
+
+
+def _ramp(u, width):
+    """max(u, 0), or its hyperbolic smoothing of width ``width`` (> 0)."""
+    if width is None or width == 0:
+        return ca.fmax(u, 0)
+    return 0.5 * (u + ca.sqrt(u * u + width * width))
+
+
+def _ramp_slope(u, width):
+    """Derivative of :func:`_ramp` in u."""
+    if width is None or width == 0:
+        return ca.if_else(u > 0, 1.0, 0.0)
+    return 0.5 * (1 + u / ca.sqrt(u * u + width * width))
+
+
+def _check_real(name, value, *, positive=False, nonnegative=False):
+    if isinstance(value, (ca.SX, ca.MX)):
+        return value
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+        raise TypeError(f"`{name}` must be a real number, got {value!r} of type {type(value).__name__}.")
+    value = float(value)
+    if not np.isfinite(value):
+        raise ValueError(f"`{name}` must be finite, got {value!r}; give a finite number.")
+    if positive and value <= 0:
+        raise ValueError(f"`{name}` must be positive, got {value!r}; give a value > 0.")
+    if nonnegative and value < 0:
+        raise ValueError(f"`{name}` must be non-negative, got {value!r}; give a value >= 0.")
+    return value
+
+
+@dataclass(frozen=True)
+class _Branch:
+    """Parameters of one branch: names and default values."""
+
+    names: tuple[str, ...]
+    values: tuple[float, ...]
+
+
+class Curve:
+    """Base class of a resistance curve f(x) with an optional unloading branch.
+
+    Subclasses implement :meth:`_loading` and :meth:`_loading_slope` on a
+    parameter vector ``theta`` laid out as :attr:`_branch` says.
+
+    Parameters
+    ----------
+    unloading : Curve, optional
+        Curve used while the deflection shrinks (x·ẋ < 0). Its parameters are
+        appended to this curve's, prefixed with ``unload.``.
+    smooth : bool
+        Replace kinks and the branch switch by smooth blends of widths
+        ``kink_width`` and ``rate_width`` (for gradient-based design).
+    tunable : bool
+        Mark the parameters as design variables: a strut built with this curve
+        exposes them in its ``p`` input instead of baking the numbers in.
+    """
+
+    def __init__(self, *, unloading: "Curve | None" = None, smooth: bool = False,
+                 kink_width: float = KINK_WIDTH, rate_width: float = RATE_WIDTH,
+                 tunable: bool = False):
+        if unloading is not None and not isinstance(unloading, Curve):
+            raise TypeError(
+                f"`unloading` must be a Curve (e.g. Linear(1e4)), got {unloading!r}.")
+        if unloading is not None and unloading.unloading is not None:
+            raise ValueError("`unloading` must not have an unloading branch of its own; "
+                             "give a plain curve.")
+        self.unloading = unloading
+        self.smooth = bool(smooth)
+        self.kink_width = _check_real("kink_width", kink_width, positive=True)
+        self.rate_width = _check_real("rate_width", rate_width, positive=True)
+        self.tunable = bool(tunable)
+
+    # -- parameters -------------------------------------------------------
+    _branch: _Branch
+
+    @property
+    def param_names(self) -> tuple[str, ...]:
+        """Names of the flat parameter vector (loading, then ``unload.*``)."""
+        names = self._branch.names
+        if self.unloading is not None:
+            names = names + tuple("unload." + s for s in self.unloading._branch.names)
+        return names
+
+    @property
+    def param_values(self) -> np.ndarray:
+        """Default (numeric) values of the flat parameter vector."""
+        values = self._branch.values
+        if self.unloading is not None:
+            values = values + self.unloading._branch.values
+        return np.array(values, dtype=float)
+
+    @property
+    def n_params(self) -> int:
+        return len(self.param_names)
+
+    def _split(self, theta):
+        """Split a flat parameter vector into (loading, unloading) parts."""
+        if theta is None:
+            theta = self.param_values
+        if isinstance(theta, (ca.SX, ca.MX, ca.DM)):
+            count = theta.numel()
+        else:
+            theta = np.asarray(theta, dtype=float).ravel()
+            count = theta.size
+        if count != self.n_params:
+            raise ValueError(
+                f"`theta` of {type(self).__name__} must have {self.n_params} entries "
+                f"{self.param_names}, got {count}; pass one value per parameter.")
+        m = len(self._branch.names)
+        return theta[:m], theta[m:]
+
+    # -- evaluation -------------------------------------------------------
+    def _width(self):
+        return self.kink_width if self.smooth else None
+
+    def _loading(self, x, theta):  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def _loading_slope(self, x, theta):  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def _weight(self, x, rate):
+        """Weight of the loading branch: 1 while x·ẋ ≥ 0 (magnitude grows)."""
+        if self.smooth:
+            return 0.5 * (1 + ca.tanh(x * rate / self.rate_width))
+        return ca.if_else(x * rate >= 0, 1.0, 0.0)
+
+    def force(self, x, rate=0.0, theta=None):
+        """Resistance f(x, sign ẋ) of the element.
+
+        Parameters
+        ----------
+        x : float or casadi.SX/MX
+            Deflection of the element (m or rad).
+        rate : float or casadi.SX/MX
+            Its rate ẋ (m/s or rad/s); only its sign matters (or x·ẋ over
+            ``rate_width`` when smooth). Default 0: the loading branch.
+        theta : array_like or casadi vector, optional
+            Flat parameter vector (``param_names``); default the numbers given.
+
+        Returns
+        -------
+        float or casadi expression
+            Force (N) or moment (N·m).
+        """
+        symbolic = _is_symbolic(x, rate, theta)
+        th_load, th_unload = self._split(theta)
+        value = self._loading(x, th_load)
+        if self.unloading is not None:
+            weight = self._weight(x, rate)
+            value = weight * value + (1 - weight) * self.unloading._loading(x, th_unload)
+        return _numeric_out(value, symbolic)
+
+    def slope(self, x, rate=0.0, theta=None):
+        """Derivative df/dx of the active branch (N/m or N·m/rad), written by hand."""
+        symbolic = _is_symbolic(x, rate, theta)
+        th_load, th_unload = self._split(theta)
+        value = self._loading_slope(x, th_load)
+        if self.unloading is not None:
+            weight = self._weight(x, rate)
+            value = weight * value + (1 - weight) * self.unloading._loading_slope(x, th_unload)
+        return _numeric_out(value, symbolic)
+
+    __call__ = force
+
+    def __repr__(self):
+        args = ", ".join(f"{n}={v:g}" for n, v in zip(self.param_names, self.param_values))
+        return f"{type(self).__name__}({args})"
+
+
+class Linear(Curve):
+    """Linear resistance f(x) = preload + k x.
+
+    Parameters
+    ----------
+    stiffness : float
+        k, N/m (axial) or N·m/rad (hinge); positive means restoring.
+    preload : float
+        f(0), N or N·m. A non-zero preload loads the leg at its rest pose.
+    """
+
+    def __init__(self, stiffness, preload=0.0, **options):
+        super().__init__(**options)
+        stiffness = _check_real("stiffness", stiffness)
+        preload = _check_real("preload", preload)
+        self._branch = _Branch(("k", "preload"), (stiffness, preload))
+
+    def _loading(self, x, theta):
+        return theta[1] + theta[0] * x
+
+    def _loading_slope(self, x, theta):
+        return theta[0] + 0 * x
+
+
+class PiecewiseLinear(Curve):
+    """Piecewise-linear resistance through knots (x_i, f_i).
+
+    Outside the knots the end segments are extended. The knot positions are
+    fixed; the knot values ``f0 … f{m-1}`` are the parameters (what a design
+    study tunes). With ``smooth=True`` every interior corner is rounded over a
+    width ``kink_width``.
+
+    Parameters
+    ----------
+    x : sequence of float, shape (m,)
+        Strictly increasing knot positions (m or rad), m ≥ 2.
+    f : sequence of float, shape (m,)
+        Values at the knots (N or N·m).
+    """
+
+    def __init__(self, x: Sequence[float], f: Sequence[float], **options):
+        super().__init__(**options)
+        xs = np.asarray(x, dtype=float).ravel()
+        fs = np.asarray(f, dtype=float).ravel()
+        if xs.size < 2:
+            raise ValueError(f"`x` needs at least 2 knots, got {xs.size}; give two or more.")
+        if fs.size != xs.size:
+            raise ValueError(f"`f` must have one value per knot ({xs.size}), got {fs.size}.")
+        if not (np.all(np.isfinite(xs)) and np.all(np.isfinite(fs))):
+            raise ValueError(f"knots must be finite, got x={xs.tolist()}, f={fs.tolist()}.")
+        if np.any(np.diff(xs) <= 0):
+            raise ValueError(f"`x` must be strictly increasing, got {xs.tolist()}; sort the knots.")
+        self.knots = xs
+        self._branch = _Branch(tuple(f"f{i}" for i in range(xs.size)), tuple(fs.tolist()))
+
+    def _slopes(self, theta):
+        xs = self.knots
+        return [(theta[i + 1] - theta[i]) / (xs[i + 1] - xs[i]) for i in range(xs.size - 1)]
+
+    def _loading(self, x, theta):
+        xs, slopes, width = self.knots, self._slopes(theta), self._width()
+        value = theta[0] + slopes[0] * (x - xs[0])
+        for i in range(1, xs.size - 1):
+            value = value + (slopes[i] - slopes[i - 1]) * _ramp(x - xs[i], width)
+        return value
+
+    def _loading_slope(self, x, theta):
+        xs, slopes, width = self.knots, self._slopes(theta), self._width()
+        value = slopes[0] + 0 * x
+        for i in range(1, xs.size - 1):
+            value = value + (slopes[i] - slopes[i - 1]) * _ramp_slope(x - xs[i], width)
+        return value
+
+
+class Crushable(Curve):
+    """Crushable absorber (honeycomb): elastic rise to a crush plateau.
+
+    In compression (x < 0) the force rises with stiffness k until it reaches
+    the crush force F_c, then stays on a plateau of slope ``plateau_slope``;
+    in extension it is elastic with stiffness k::
+
+        f(x) = k x                                   for x ≥ −F_c/k
+        f(x) = −F_c + k_p (x + F_c/k)                for x < −F_c/k
+
+    A small positive ``plateau_slope`` keeps the stiffness matrix regular.
+    The usual unloading branch of a crushed honeycomb is nearly force-free:
+    e.g. ``Crushable(2e6, 8e3, unloading=Linear(2e4))``.
+
+    Parameters
+    ----------
+    stiffness : float
+        Elastic stiffness k before crushing (N/m), > 0.
+    crush_force : float
+        Plateau force F_c (N), > 0.
+    plateau_slope : float
+        Slope on the plateau (N/m), ≥ 0.
+    """
+
+    def __init__(self, stiffness, crush_force, plateau_slope=0.0, **options):
+        super().__init__(**options)
+        stiffness = _check_real("stiffness", stiffness, positive=True)
+        crush_force = _check_real("crush_force", crush_force, positive=True)
+        plateau_slope = _check_real("plateau_slope", plateau_slope, nonnegative=True)
+        self._branch = _Branch(("k", "crush_force", "plateau_slope"),
+                               (stiffness, crush_force, plateau_slope))
+
+    def _loading(self, x, theta):
+        k, f_c, k_p = theta[0], theta[1], theta[2]
+        x_c = -f_c / k  # onset of crushing
+        # k x plus the change of slope (k_p − k) below the onset.
+        return k * x + (k - k_p) * _ramp(x_c - x, self._width())
+
+    def _loading_slope(self, x, theta):
+        k, f_c, k_p = theta[0], theta[1], theta[2]
+        x_c = -f_c / k
+        return k - (k - k_p) * _ramp_slope(x_c - x, self._width())

@@ -1,0 +1,364 @@
+"""A compliant strut on a spherical hinge: the force law (2.1) and its stiffness.
+
+The strut of Khvostov (1976) §2 is fixed to the body by a spherical hinge at
+r_h; a foot at r carries the contact load. The force on the foot *from the
+obstacle* that holds it at r (P = −P_h, the paper's sign) is
+
+    P = S e_S + (1/L) M_β e_β + (1/L) M_γ e_γ                          (2.1)
+
+with L = |r − r_h|, δ_S = L − L₀, e_S = (r − r_h)/L,
+e_β = e_S × e_n/|e_S × e_n|, β = −arcsin(e₀·e_β),
+e_γ = e_S × (e_n × e_S)/|e_S × (e_n × e_S)|, γ = arcsin(e_n·e_γ).
+
+This module owns the geometry of one strut and the CasADi Functions built on
+it. It knows nothing of contact or of the body's motion.
+
+Orientation of the elements (NOTES §2): users give every element as a
+resistance curve f(x) of its own deflection x (δ_S, β, γ − γ₀) with a
+positive slope meaning restoring; the strut applies
+S = f_S(δ_S), M_β = f_β(β), M_γ = −sign(e₀·e_n) f_γ(γ − γ₀), for which the
+rest stiffness is positive definite.
+
+Loading/unloading branches (P = P(δ, sign δ′)): the rates of (2.1) are
+sign δ_S′ = sign(V·e_S) and sign β′ = sign(V·e_β). For the polar element
+the rate of the user's deflection γ − γ₀ is γ′ = −sign(e₀·e_n)(V·e_γ)/L
+(e_γ points towards e_n, so moving along it closes the angle to e_n when
+e₀·e_n > 0); (2.1)'s sign γ′ = sign(V·e_γ) is the rate in the direction of
+the moment M_γ, the same thing seen with the paper's orientation.
+
+An element that is absent contributes nothing, except the axial one: a strut
+given without ``S`` is an *axially rigid rod*, modelled as a stiff linear
+axial spring whose stiffness is ``axial_ratio`` times the bending stiffness
+scale (max hinge slope)/L₀² — see :data:`RIGID_AXIAL_RATIO`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Optional
+
+import casadi as ca
+import numpy as np
+
+from .characteristics import Curve, Linear
+
+__all__ = ["HingedStrut", "RIGID_AXIAL_RATIO", "SINGULAR_ANGLE", "leg_geometry_expr"]
+
+#: Axial stiffness of a "rigid" rod relative to its bending stiffness scale,
+#: k_S = ratio · max(M_β′, M_γ′)/L₀². The foot is massless, so the contact
+#: step itself copes with any ratio (NOTES §3.7: 1e8 works); what a large
+#: ratio costs is the time step of the *body's* motion, which sees an axial
+#: mode of frequency √(k_S/m): the explicit-in-velocity integrator is stable
+#: for ω Δt < 2. At 1e3 the axial stroke is a thousandth of the bending
+#: deflection under the same force, and the Figs. 3–4 scene (1200 N·m/rad,
+#: 0.6 m, 50 kg, 4 legs) has ω Δt ≈ 0.5 at Δt = 1 ms. ``studies/rigid_rod.py``
+#: measures the trade-off.
+RIGID_AXIAL_RATIO = 1e3
+
+#: Smallest angle (rad) allowed between the rest direction e₀ and the lines
+#: where (2.1) is singular (e₀ ∥ e_n: e_β undefined; e₀ ⊥ e_n: γ has a kink,
+#: NOTES §2). 1° keeps |e_S × e_n| and |e_S·e_n| above 0.017 at rest.
+SINGULAR_ANGLE = np.deg2rad(1.0)
+
+
+def _vector(name, value, *, unit=False):
+    try:
+        arr = np.asarray(value, dtype=float).ravel()
+    except (TypeError, ValueError):
+        raise TypeError(f"`{name}` must be a 3-vector of numbers, got {value!r}.") from None
+    if arr.size != 3:
+        raise ValueError(f"`{name}` must have 3 components, got {arr.size} ({value!r}).")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"`{name}` must be finite, got {arr.tolist()}; give finite components.")
+    if unit:
+        norm = np.linalg.norm(arr)
+        if norm < 1e-12:
+            raise ValueError(f"`{name}` must be a non-zero direction, got {arr.tolist()}.")
+        arr = arr / norm
+    return arr
+
+
+def _unit(v):
+    return v / ca.norm_2(v)
+
+
+def leg_geometry_expr(r, r_h, e0, en):
+    """Geometry of (2.1) as CasADi expressions of the foot position ``r``.
+
+    Returns a dict with L, e_S, e_beta, e_gamma, beta, gamma.
+    """
+    d = r - r_h
+    L = ca.norm_2(d)
+    e_S = d / L
+    e_beta = _unit(ca.cross(e_S, en))                                  # (2.1)
+    e_gamma = _unit(ca.cross(e_S, ca.cross(en, e_S)))                  # (2.1)
+    beta = -ca.asin(ca.dot(e0, e_beta))                                # (2.1)
+    gamma = ca.asin(ca.dot(en, e_gamma))                               # (2.1), NOTES §1
+    return dict(L=L, e_S=e_S, e_beta=e_beta, e_gamma=e_gamma, beta=beta, gamma=gamma)
+
+
+@dataclass(frozen=True)
+class _Element:
+    name: str            # 'S', 'M_beta', 'M_gamma'
+    curve: Curve
+    offset: int          # start of its parameters in p (tunable only)
+
+
+class HingedStrut:
+    """A strut on a spherical hinge with axial and bending elements (Fig. 2).
+
+    Parameters
+    ----------
+    hinge : array_like, shape (3,)
+        Hinge position r_h in body coordinates (m).
+    e0 : array_like, shape (3,)
+        Rest direction of the strut (normalised here).
+    en : array_like, shape (3,)
+        Polar axis e_n of the hinge (normalised here); must make an angle of
+        at least :data:`SINGULAR_ANGLE` with e₀ and with the plane ⊥ e₀.
+    length : float
+        Rest length L₀ (m), > 0.
+    S, M_beta, M_gamma : Curve, optional
+        Resistance curves of the axial stroke δ_S (N vs m), of β and of
+        γ − γ₀ (N·m vs rad). ``S=None`` makes an axially rigid rod.
+    axial_ratio : float
+        Stiffness ratio of the rigid rod's axial spring (used when S is None).
+
+    Examples
+    --------
+    >>> from symcushion.characteristics import Linear
+    >>> leg = HingedStrut(hinge=(0, 0, 0), e0=(0, 0, -1), en=(0, 0.5, -1),
+    ...                   length=0.6, S=Linear(2e5), M_beta=Linear(3e3),
+    ...                   M_gamma=Linear(3e3))
+    >>> sorted(leg.functions())
+    ['strut_force', 'strut_geometry', 'strut_stiffness', 'strut_stiffness_paper']
+    """
+
+    def __init__(self, hinge, e0, en, length, S: Optional[Curve] = None,
+                 M_beta: Optional[Curve] = None, M_gamma: Optional[Curve] = None,
+                 axial_ratio: float = RIGID_AXIAL_RATIO):
+        self.hinge = _vector("hinge", hinge)
+        self.e0 = _vector("e0", e0, unit=True)
+        self.en = _vector("en", en, unit=True)
+        if isinstance(length, bool) or not isinstance(length, (int, float, np.floating, np.integer)):
+            raise TypeError(f"`length` must be a number (m), got {length!r}.")
+        if not np.isfinite(length) or length <= 0:
+            raise ValueError(f"`length` must be a positive finite length in m, got {length!r}.")
+        self.length = float(length)
+        cos0 = float(self.e0 @ self.en)
+        angle = np.arccos(np.clip(abs(cos0), 0.0, 1.0))
+        if angle < SINGULAR_ANGLE:
+            raise ValueError(
+                f"`e0` is parallel to `en` (angle {np.rad2deg(angle):.3g}° < "
+                f"{np.rad2deg(SINGULAR_ANGLE):g}°): e_β of (2.1) is undefined there; "
+                "tilt `en` away from the strut.")
+        if np.pi / 2 - angle < SINGULAR_ANGLE:
+            raise ValueError(
+                f"`e0` is perpendicular to `en` (angle {np.rad2deg(angle):.4g}° from the "
+                "axis line): γ of (2.1) has a kink there (NOTES §2); tilt `en` so that the "
+                "strut makes an angle strictly between 0° and 90° with it.")
+        for name, curve in (("S", S), ("M_beta", M_beta), ("M_gamma", M_gamma)):
+            if curve is not None and not isinstance(curve, Curve):
+                raise TypeError(f"`{name}` must be a characteristic curve such as Linear(1e4), "
+                                f"got {curve!r}.")
+        if S is None:
+            if not (isinstance(axial_ratio, (int, float)) and np.isfinite(axial_ratio)
+                    and axial_ratio > 0):
+                raise ValueError(f"`axial_ratio` must be a positive number, got {axial_ratio!r}.")
+            bend = [abs(c.slope(0.0)) for c in (M_beta, M_gamma) if c is not None]
+            if not bend or max(bend) == 0:
+                raise ValueError("a rigid rod (`S=None`) needs a hinge element with non-zero "
+                                 "stiffness to scale its axial spring; give `M_beta` or "
+                                 "`M_gamma`, or give `S` explicitly.")
+            S = Linear(axial_ratio * max(bend) / self.length ** 2)
+            self.rigid = True
+        else:
+            self.rigid = False
+        self.axial_ratio = float(axial_ratio)
+        self.sigma = float(np.sign(cos0))  # orientation sign of M_γ, NOTES §2
+        self.gamma0 = float(np.arcsin(np.linalg.norm(np.cross(self.e0, self.en))))
+        elements, offset = [], 0
+        for name, curve in (("S", S), ("M_beta", M_beta), ("M_gamma", M_gamma)):
+            if curve is None:
+                continue
+            elements.append(_Element(name, curve, offset))
+            if curve.tunable:
+                offset += curve.n_params
+        self.elements = tuple(elements)
+        self._functions = None
+
+    # -- parameters -----------------------------------------------------------
+    @property
+    def param_names(self) -> tuple[str, ...]:
+        """Names of the entries of ``p`` (tunable curves only), e.g. ``S.k``."""
+        return tuple(f"{el.name}.{n}" for el in self.elements if el.curve.tunable
+                     for n in el.curve.param_names)
+
+    @property
+    def param_values(self) -> np.ndarray:
+        """Default values of ``p``."""
+        vals = [el.curve.param_values for el in self.elements if el.curve.tunable]
+        return np.concatenate(vals) if vals else np.zeros(0)
+
+    @property
+    def rest_foot(self) -> np.ndarray:
+        """Foot position at the unloaded rest pose, r_h + L₀ e₀ (m)."""
+        return self.hinge + self.length * self.e0
+
+    def _theta(self, el: _Element, p):
+        if el.curve.tunable:
+            return p[el.offset:el.offset + el.curve.n_params]
+        return None
+
+    # -- symbolic model ---------------------------------------------------------
+    def geometry(self, r):
+        """Geometry of (2.1) at foot position ``r`` (CasADi expression)."""
+        g = leg_geometry_expr(r, ca.DM(self.hinge), ca.DM(self.e0), ca.DM(self.en))
+        g["delta_S"] = g["L"] - self.length
+        return g
+
+    def rates(self, g, v):
+        """Deflection rates of (S, M_β, M_γ) whose signs select the branches (2.1)."""
+        return dict(S=ca.dot(v, g["e_S"]),
+                    M_beta=ca.dot(v, g["e_beta"]),
+                    M_gamma=-self.sigma * ca.dot(v, g["e_gamma"]) / g["L"])
+
+    def _deflections(self, g):
+        return dict(S=g["delta_S"], M_beta=g["beta"], M_gamma=g["gamma"] - self.gamma0)
+
+    def element_forces(self, g, v, p):
+        """S, M_β, M_γ of (2.1), with the orientation sign of M_γ applied."""
+        x, rate = self._deflections(g), self.rates(g, v)
+        out = dict(S=0.0, M_beta=0.0, M_gamma=0.0)
+        for el in self.elements:
+            out[el.name] = el.curve.force(x[el.name], rate[el.name], self._theta(el, p))
+        out["M_gamma"] = -self.sigma * out["M_gamma"]                  # NOTES §2
+        return out
+
+    def force_expr(self, r, v, p):
+        """P(r) of (2.1) as a CasADi expression (N)."""
+        g = self.geometry(r)
+        f = self.element_forces(g, v, p)
+        return (f["S"] * g["e_S"] + f["M_beta"] / g["L"] * g["e_beta"]
+                + f["M_gamma"] / g["L"] * g["e_gamma"])                # (2.1)
+
+    def stiffness_paper_expr(self, r, v, p):
+        """D_p from the hand formula (2.3), column by column (2.2)."""
+        g = self.geometry(r)
+        en, e0 = ca.DM(self.en), ca.DM(self.e0)
+        L, e_S, e_beta, e_gamma = g["L"], g["e_S"], g["e_beta"], g["e_gamma"]
+        x, rate = self._deflections(g), self.rates(g, v)
+        f = self.element_forces(g, v, p)
+        slope = dict(S=0.0, M_beta=0.0, M_gamma=0.0)
+        for el in self.elements:
+            slope[el.name] = el.curve.slope(x[el.name], rate[el.name], self._theta(el, p))
+        dS = slope["S"]
+        dMb = slope["M_beta"]
+        dMg = -self.sigma * slope["M_gamma"]       # dM_γ/dγ with the orientation sign
+        S, Mb, Mg = f["S"], f["M_beta"], f["M_gamma"]
+        norm_b = ca.norm_2(ca.cross(e_S, en))                          # |e_S × e_n|
+        norm_g = ca.norm_2(ca.cross(e_S, ca.cross(en, e_S)))           # |e_S × (e_n × e_S)|
+        columns = []
+        for i in range(3):
+            e_i = ca.DM.zeros(3)
+            e_i[i] = 1.0
+            dL = e_S[i]                                                # ∂L/∂q_i = e_Si
+            de_S = (e_i - e_S[i] * e_S) / L                            # ∂e_S/∂q_i
+            u_beta = ca.cross(de_S, en) / norm_b
+            de_beta = ca.cross(e_beta, ca.cross(u_beta, e_beta))       # ∂e_β/∂q_i
+            d_beta = -ca.dot(e0, de_beta) / ca.sqrt(1 - ca.dot(e0, e_beta) ** 2)
+            u_gamma = (ca.cross(de_S, ca.cross(en, e_S))
+                       + ca.cross(e_S, ca.cross(en, de_S))) / norm_g
+            de_gamma = ca.cross(e_gamma, ca.cross(u_gamma, e_gamma))   # ∂e_γ/∂q_i
+            d_gamma = ca.dot(en, de_gamma) / ca.sqrt(1 - ca.dot(en, e_gamma) ** 2)
+            column = (dS * dL * e_S + S * de_S                         # (2.3)
+                      - (Mb * e_beta + Mg * e_gamma) * dL / L ** 2
+                      + (dMb * d_beta * e_beta + Mb * de_beta) / L
+                      + (dMg * d_gamma * e_gamma + Mg * de_gamma) / L)
+            columns.append(column)
+        return ca.horzcat(*columns)
+
+    # -- Functions --------------------------------------------------------------
+    def functions(self) -> dict[str, ca.Function]:
+        """The named CasADi Functions of this strut (built once, cached).
+
+        Returns
+        -------
+        dict
+            ``strut_force(r, v, p) -> P``, ``strut_stiffness(r, v, p) -> Dp``
+            (``casadi.jacobian``), ``strut_stiffness_paper(r, v, p) -> Dp``
+            ((2.3) by hand) and ``strut_geometry(r) -> L, delta_S, beta, gamma,
+            e_S, e_beta, e_gamma``. ``r``: foot position (3, m, body frame);
+            ``v``: foot velocity relative to the hinge (3, m/s; selects the
+            branches); ``p``: tunable parameters (``param_names``), empty when
+            all curves are numeric.
+        """
+        if self._functions is None:
+            r = ca.SX.sym("r", 3)
+            v = ca.SX.sym("v", 3)
+            p = ca.SX.sym("p", len(self.param_names))
+            P = self.force_expr(r, v, p)
+            Dp = ca.jacobian(P, r)
+            Dp_paper = self.stiffness_paper_expr(r, v, p)
+            g = self.geometry(r)
+            names_in = ["r", "v", "p"]
+            self._functions = {
+                "strut_force": ca.Function("strut_force", [r, v, p], [P], names_in, ["P"]),
+                "strut_stiffness": ca.Function("strut_stiffness", [r, v, p], [Dp],
+                                               names_in, ["Dp"]),
+                "strut_stiffness_paper": ca.Function("strut_stiffness_paper", [r, v, p],
+                                                     [Dp_paper], names_in, ["Dp"]),
+                "strut_geometry": ca.Function(
+                    "strut_geometry", [r],
+                    [g["L"], g["delta_S"], g["beta"], g["gamma"], g["e_S"], g["e_beta"],
+                     g["e_gamma"]],
+                    ["r"], ["L", "delta_S", "beta", "gamma", "e_S", "e_beta", "e_gamma"]),
+            }
+        return self._functions
+
+    # -- numeric convenience ------------------------------------------------------
+    def _check_r(self, r):
+        r = _vector("r", r)
+        if np.linalg.norm(r - self.hinge) < 1e-9 * self.length:
+            raise ValueError(f"`r` = {r.tolist()} is at the hinge {self.hinge.tolist()}: the "
+                             "strut direction is undefined; give a foot position away from it.")
+        return r
+
+    def _p(self, p):
+        if p is None:
+            return self.param_values
+        p = np.asarray(p, dtype=float).ravel()
+        if p.size != len(self.param_names):
+            raise ValueError(f"`p` must have {len(self.param_names)} entries "
+                             f"{self.param_names}, got {p.size}.")
+        return p
+
+    def force(self, r, v=(0.0, 0.0, 0.0), p=None) -> np.ndarray:
+        """P(r) of (2.1) as a NumPy array (N); validates its inputs."""
+        out = self.functions()["strut_force"](self._check_r(r), _vector("v", v), self._p(p))
+        return np.asarray(out, dtype=float).ravel()
+
+    def stiffness(self, r, v=(0.0, 0.0, 0.0), p=None, *, paper=False) -> np.ndarray:
+        """D_p = ∂P/∂r (3×3, N/m) by AD, or by (2.3) with ``paper=True``."""
+        name = "strut_stiffness_paper" if paper else "strut_stiffness"
+        out = self.functions()[name](self._check_r(r), _vector("v", v), self._p(p))
+        return np.asarray(out, dtype=float)
+
+    def rest_stiffness_closed_form(self) -> np.ndarray:
+        """D_p at the unloaded rest pose, closed form of NOTES §2.
+
+        D_p = S′ e_S e_Sᵀ + (M_β′/L₀²) e_β e_βᵀ + (m′/L₀²) e_γ e_γᵀ, with the
+        slopes of the loading branches at zero deflection.
+        """
+        e_S = self.e0
+        e_beta = np.cross(e_S, self.en)
+        e_beta /= np.linalg.norm(e_beta)
+        e_gamma = np.cross(e_S, np.cross(self.en, e_S))
+        e_gamma /= np.linalg.norm(e_gamma)
+        out = np.zeros((3, 3))
+        basis = dict(S=(e_S, 1.0), M_beta=(e_beta, self.length ** -2),
+                     M_gamma=(e_gamma, self.length ** -2))
+        for el in self.elements:
+            vec, scale = basis[el.name]
+            theta = el.curve.param_values
+            out += el.curve.slope(0.0, 0.0, theta) * scale * np.outer(vec, vec)
+        return out
