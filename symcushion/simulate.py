@@ -292,15 +292,30 @@ def _rot_np(q):
     return np.asarray(ca.Function("R", [], [quat_to_rot(ca.DM(q))])()["o0"], dtype=float)
 
 
-def equilibrium_state(scene: Scene, acceleration=(0.0, 0.0, 0.0), p=None) -> np.ndarray:
+def _drop_point(obstacles, free, direction, iterations=20):
+    """Where the line free + s·direction first meets the obstacle (Newton in s)."""
+    point = ca.DM(free)
+    for _ in range(iterations):
+        d, n, _ = closest_obstacle(obstacles, point)
+        slope = float(ca.evalf(ca.dot(n, ca.DM(direction))))
+        if abs(slope) < 1e-9:
+            raise ValueError("cannot drop a foot onto the obstacle: the drop direction is "
+                             "tangent to it; use placement='nearest'.")
+        point = point - float(ca.evalf(d)) / slope * ca.DM(direction)
+    return np.asarray(point, dtype=float).ravel()
+
+
+def equilibrium_state(scene: Scene, acceleration=(0.0, 0.0, 0.0), p=None,
+                      solve_attitude: bool = True, placement: str = "gravity") -> np.ndarray:
     """A state at rest (or in steady translation) with every foot on the obstacle.
 
-    Each foot is placed at the projection of its unloaded position onto the
-    nearest obstacle and held there; the body's position (attitude kept) is
-    solved by Newton's method so that the leg forces balance m(g − a):
-    ΣP_j = −m(g − a). With ``acceleration`` the body's steady acceleration,
-    this is the state of a steadily sliding body. Torque balance is not
-    solved: pick symmetric scenes for that.
+    Each foot is placed where its unloaded position meets the obstacle, moving
+    along gravity (``placement='gravity'``, as a foot lands) or to the nearest
+    surface point (``'nearest'``), and held there; the body's position and (with
+    ``solve_attitude``) a small rotation of its attitude are solved by Newton's
+    method so that the leg forces balance the body: ΣP_j = −m(g − a) and
+    Σρ_j × P_j = 0. With ``acceleration`` the body's steady acceleration (no
+    rotation), this is the state of a steadily sliding body.
 
     Returns
     -------
@@ -308,26 +323,45 @@ def equilibrium_state(scene: Scene, acceleration=(0.0, 0.0, 0.0), p=None) -> np.
         Velocities zero, contact flags 1, stored forces the exact P_j.
     """
     b = scene.body
-    R = _rot_np(b.attitude)
+    R0 = _rot_np(b.attitude)
     a = np.asarray(acceleration, dtype=float)
+    if placement not in ("gravity", "nearest"):
+        raise ValueError(f"`placement` must be 'gravity' or 'nearest', got {placement!r}.")
     pts = []
+    down = scene.gravity / np.linalg.norm(scene.gravity)
     for leg in scene.legs:
-        free = ca.DM(b.position + R @ leg.rest_foot)
-        _, _, proj = closest_obstacle(scene.obstacles, free)
-        pts.append(np.asarray(ca.evalf(proj)).ravel())
+        free = b.position + R0 @ leg.rest_foot
+        if placement == "gravity":
+            pts.append(_drop_point(scene.obstacles, free, down))
+        else:
+            _, _, proj = closest_obstacle(scene.obstacles, ca.DM(free))
+            pts.append(np.asarray(ca.evalf(proj)).ravel())
     names, offsets = _leg_params(scene)
-    p = np.zeros(len(names)) if p is None else np.asarray(p, dtype=float)
-    x = ca.SX.sym("x", 3)
+    p = _default_p(scene) if p is None else np.asarray(p, dtype=float)
+    z = ca.SX.sym("z", 6 if solve_attitude else 3)
+    x = z[0:3]
+    q = ca.DM(b.attitude)
+    if solve_attitude:
+        q = quat_mul(q, quat_exp(z[3:6]))
+    R = quat_to_rot(q)
     total = ca.DM.zeros(3)
+    torque = ca.DM.zeros(3)
     for j, (leg, pt) in enumerate(zip(scene.legs, pts)):
-        rho = ca.DM(R.T) @ (ca.DM(pt) - x)
-        total = total + ca.DM(R) @ leg.functions()["strut_force"](
-            rho, ca.DM.zeros(3), p[offsets[j][0]:offsets[j][1]])
+        rho = R.T @ (ca.DM(pt) - x)
+        P = leg.functions()["strut_force"](rho, ca.DM.zeros(3), p[offsets[j][0]:offsets[j][1]])
+        total = total + R @ P
+        torque = torque + ca.cross(rho, P)
     residual = total + b.mass * (ca.DM(scene.gravity) - ca.DM(a))
-    solver = ca.rootfinder("equilibrium", "newton", ca.Function("res", [x], [residual]),
-                           {"abstol": 1e-12, "max_iter": 100})
-    pos = np.asarray(solver(b.position), dtype=float).ravel()
-    state = [pos, np.zeros(3), b.attitude, np.zeros(3)]
+    if solve_attitude:
+        residual = ca.vertcat(residual, torque)
+    solver = ca.rootfinder("equilibrium", "newton", ca.Function("res", [z], [residual]),
+                           {"abstol": 1e-10, "max_iter": 200})
+    guess = np.concatenate([b.position, np.zeros(3)]) if solve_attitude else b.position
+    sol = np.asarray(solver(guess), dtype=float).ravel()
+    pos = sol[0:3]
+    quat = np.asarray(ca.evalf(ca.substitute(q, z, ca.DM(sol))), dtype=float).ravel()
+    R = _rot_np(quat)
+    state = [pos, np.zeros(3), quat, np.zeros(3)]
     for j, (leg, pt) in enumerate(zip(scene.legs, pts)):
         rho = R.T @ (pt - pos)
         P = np.asarray(leg.functions()["strut_force"](rho, np.zeros(3),
