@@ -123,7 +123,13 @@ class StepModel:
         X has the states after each step as columns (nx × steps), Y the outputs.
         One call runs a whole simulation and is differentiable end to end.
         """
+        if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
+            raise ValueError(f"`steps` must be a positive integer, got {steps!r}.")
+        steps = int(steps)
         if steps not in self._rollouts:
+            # Building costs about 2 ms per step (CasADi's sparsity analysis of the
+            # repeated step); evaluating costs the same as a loop of calls without the
+            # Python overhead. Built once per length and cached.
             acc = self.step.mapaccum("touchdown_rollout_acc", steps)
             x0 = ca.MX.sym("x0", self.nx)
             p = ca.MX.sym("p", self.np)
@@ -393,6 +399,9 @@ class Trajectory:
     force_angle : (T, N) angle of the contact force from the vertical (rad, NaN when free)
     stroke, beta, gamma_deflection : (T, N) δ_S (m), hinge β and γ − γ₀ (rad)
     criterion : (T,) max over feet of 1 − n_k·n_{k+1} (§3 step criterion)
+    info : dict
+        dt, steps, halvings, wall_seconds, criterion_max, method, and
+        ``final_state`` (the state vector after the last step, to continue a run).
     """
 
     t: np.ndarray
@@ -524,7 +533,8 @@ def simulate(scene: Scene, *, model: StepModel | None = None, x0=None, p=None,
         X, Y = model.rollout(steps)(x0, p, scene.dt)
         t = scene.dt * np.arange(steps + 1)
         traj = trajectory_from(model, x0, X, Y, t)
-        traj.info = {"dt": scene.dt, "steps": steps, "halvings": 0}
+        traj.info = {"dt": scene.dt, "steps": steps, "halvings": 0,
+                     "final_state": np.asarray(X, dtype=float)[:, -1]}
     else:
         traj = _simulate_adaptive(model, x0, p, eps, progress)
     traj.info["criterion_max"] = float(np.nanmax(traj.criterion)) if traj.criterion.size else 0.0
@@ -582,7 +592,8 @@ def _simulate_adaptive(model, x0, p, eps, progress):
     if progress:
         print()
     traj = trajectory_from(model, x0, np.column_stack(xs), np.column_stack(ys), np.array(ts))
-    traj.info = {"dt": dt, "steps": len(ts) - 1, "halvings": halvings, "eps": eps}
+    traj.info = {"dt": dt, "steps": len(ts) - 1, "halvings": halvings, "eps": eps,
+                 "final_state": x}
     return traj
 
 
