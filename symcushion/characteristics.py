@@ -17,6 +17,7 @@ symbolic: pass ``theta`` (a CasADi vector) to :meth:`Curve.force`.
 """
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -121,9 +122,14 @@ class Curve:
         if unloading is not None and unloading.unloading is not None:
             raise ValueError("`unloading` must not have an unloading branch of its own; "
                              "give a plain curve.")
-        self.unloading = unloading
         self.smooth = bool(smooth)
         self.kink_width = _check_real("kink_width", kink_width, positive=True)
+        if unloading is not None and self.smooth and not unloading.smooth:
+            # `smooth` promises no kinks: round the unloading branch's knots
+            # too (on a copy; the caller's curve is left as given).
+            unloading = copy.copy(unloading)
+            unloading.smooth, unloading.kink_width = True, self.kink_width
+        self.unloading = unloading
         self.rate_width = _check_real("rate_width", rate_width, positive=True)
         self.tunable = bool(tunable)
 
@@ -274,7 +280,8 @@ class PiecewiseLinear(Curve):
         if fs.size != xs.size:
             raise ValueError(f"`f` must have one value per knot ({xs.size}), got {fs.size}.")
         if not (np.all(np.isfinite(xs)) and np.all(np.isfinite(fs))):
-            raise ValueError(f"knots must be finite, got x={xs.tolist()}, f={fs.tolist()}.")
+            raise ValueError(f"`x` and `f` must be finite, got x={xs.tolist()}, "
+                             f"f={fs.tolist()}; give finite knots.")
         if np.any(np.diff(xs) <= 0):
             raise ValueError(f"`x` must be strictly increasing, got {xs.tolist()}; sort the knots.")
         self.knots = xs

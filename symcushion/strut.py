@@ -92,7 +92,10 @@ def leg_geometry_expr(r, r_h, e0, en):
     e_beta = _unit(ca.cross(e_S, en))                                  # (2.1)
     e_gamma = _unit(ca.cross(e_S, ca.cross(en, e_S)))                  # (2.1)
     beta = -ca.asin(ca.dot(e0, e_beta))                                # (2.1)
-    gamma = ca.asin(ca.dot(en, e_gamma))                               # (2.1), NOTES §1
+    # (2.1), NOTES §1: γ = arcsin(e_n·e_γ) = arcsin|e_S × e_n|, evaluated as
+    # atan2(|e_S × e_n|, |e_S·e_n|): the same angle, but arcsin near 1 loses
+    # digits like eps/(90° − γ)² in its derivative within 1° of e_S ⊥ e_n.
+    gamma = ca.atan2(ca.norm_2(ca.cross(e_S, en)), ca.fabs(ca.dot(e_S, en)))
     return dict(L=L, e_S=e_S, e_beta=e_beta, e_gamma=e_gamma, beta=beta, gamma=gamma)
 
 
@@ -175,7 +178,8 @@ class HingedStrut:
             self.rigid = False
         self.axial_ratio = float(axial_ratio)
         self.sigma = float(np.sign(cos0))  # orientation sign of M_γ, NOTES §2
-        self.gamma0 = float(np.arcsin(np.linalg.norm(np.cross(self.e0, self.en))))
+        self.gamma0 = float(np.arctan2(np.linalg.norm(np.cross(self.e0, self.en)),
+                                       abs(cos0)))  # γ(e₀), as in leg_geometry_expr
         elements, offset = [], 0
         for name, curve in (("S", S), ("M_beta", M_beta), ("M_gamma", M_gamma)):
             if curve is None:
@@ -218,8 +222,9 @@ class HingedStrut:
 
     def rates(self, g, v):
         """Deflection rates of (S, M_β, M_γ) whose signs select the branches (2.1)."""
+        # β′ ≈ (V·e_β)/L, so that x·ẋ is in rad²/s like RATE_WIDTH says.
         return dict(S=ca.dot(v, g["e_S"]),
-                    M_beta=ca.dot(v, g["e_beta"]),
+                    M_beta=ca.dot(v, g["e_beta"]) / g["L"],
                     M_gamma=-self.sigma * ca.dot(v, g["e_gamma"]) / g["L"])
 
     def _deflections(self, g):
