@@ -36,7 +36,8 @@ class Claims:
     method: str
     max_align: float          # max |α − γ| over the contact phase, foot 0 (rad)
     rebound_dv: float         # |y′ at first lift-off| − |y′ at impact| (m/s), NaN if none
-    lifted_off: bool          # did any foot leave the dome?
+    lifted_off: bool          # did foot 0 ever leave the dome?
+    ends_in_contact: bool     # is foot 0 on the dome at the end?
     slide_excess: float       # max(|α − γ| − atan μ) while a foot slides (rad)
     decay: float              # ratio of the last to the first swing of y′ (sticking runs)
     wall: float               # seconds
@@ -49,9 +50,14 @@ class Claims:
                 ("|Δy′| < 1e-2 m/s at rebound (β = 0)", f"{self.rebound_dv:.2e}",
                  bool(np.isfinite(self.rebound_dv) and abs(self.rebound_dv) < REBOUND_BOUND)),
             ]
+        if not self.lifted_off:
+            outcome = "sticks"
+        elif self.ends_in_contact:
+            outcome = "bounces, then sticks"
+        else:
+            outcome = "rebounds"
         return [
-            ("sticks (no lift-off)", "stuck" if not self.lifted_off else "rebounds",
-             not self.lifted_off),
+            ("sticks (no lift-off)", outcome, not self.lifted_off),
             ("damped oscillation of y′ (last/first swing)", f"{self.decay:.2f}",
              bool(self.decay < 1)),
             ("|α − γ| ≤ atan μ while sliding", f"excess {self.slide_excess:.1e}",
@@ -94,10 +100,15 @@ def measure_claims(traj: Trajectory, scene) -> Claims:
         excess = float(np.nanmax(align[slide] - np.arctan(scene.mu)))
     else:
         excess = -np.inf
-    contact_v = v[c]
+    # swings of y′ during the last contact phase only (not across a flight)
+    start = off[-1] + 1 if lifted else 0
+    landing = np.where(~c[start:-1] & c[start + 1:])[0]
+    last_phase = v[start + landing[-1] + 1:] if (lifted and landing.size) else v[c]
+    contact_v = last_phase if lifted else v[c]
     sw = _swings(contact_v) if contact_v.size > 3 else np.array([])
     decay = float(sw[-1] / sw[0]) if sw.size >= 2 and sw[0] > 0 else np.nan
-    return Claims(scene.name, scene.method, max_align, rebound_dv, lifted, excess, decay,
+    return Claims(scene.name, scene.method, max_align, rebound_dv, lifted, bool(c[-1]), excess,
+                  decay,
                   float(traj.info.get("wall_seconds", np.nan)))
 
 
@@ -233,6 +244,7 @@ def claims_table(results, mus) -> str:
     lines = ["| figure | method | claim | measured | holds |", "|---|---|---|---|---|"]
     for c in results:
         for claim, value, ok in c.rows(mus[c.scene]):
+            claim = claim.replace("|", "\\|")   # literal bars inside a table cell
             lines.append(f"| {c.scene} | {c.method} | {claim} | {value} | "
                          f"{'yes' if ok else 'NO'} |")
     return "\n".join(lines)
