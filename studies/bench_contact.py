@@ -1,0 +1,396 @@
+"""How close are the printed and the robust contact steps to the exact one, and what do they cost?
+
+Question: the printed step (1.8)-(1.15) (``contact_step_paper``), the same
+step with NOTES §3 items 1-5 fixed (``contact_step_robust``) and the exact
+backward-Euler Coulomb step (``contact_step_implicit``) all map
+(P0, D_p, n, l, mu, u0) to the force P at the end of a step. How far is each
+from the implicit one, in plane-parallel motion (the case the paper derives)
+and in 3-D; how large is each graph and how fast does it evaluate; and how
+many of the implicit step's NEWTON_ITERS Newton iterations are needed?
+
+Method:
+
+- Plane-parallel cases: n, l and P0 in one plane; D_p symmetric positive
+  definite with that plane invariant (a rotated 2x2 block, cond up to 1e3,
+  plus an out-of-plane stiffness); P0 on the cone (half the cases, as a
+  sliding step leaves it) or inside; mu in [0.05, 2], and a tenth of the
+  cases with mu = 0.
+- 3-D cases: n, l random; D_p symmetric positive definite (cond up to 1e4),
+  half of them with a skew part (non-symmetric, positive-definite symmetric
+  part); P0 on or inside the cone.
+- Error of a method: |P - P_implicit| / |P_implicit - P0|, the error relative
+  to the force increment of the step. "Both in contact" restricts to cases
+  where both steps keep contact; "contact differs" counts the cases where one
+  lifts off and the other does not.
+- Cost: ``n_instructions``, ``n_nodes``; evaluations per second for a single
+  call from Python and for one call of ``f.map(BATCH)`` (serial), best of
+  BEST_OF repeats.
+- Newton iterations: the implicit Function rebuilt with NEWTON_ITERS = 0..20
+  (the module constant patched while building), on four families of random
+  3-D cases with mu in [0.05, 2]: the first count from which the slip g stays
+  within 1e-8 of its value after 20 iterations, and the Coulomb residual
+  |P_tau - mu N g/|g|| / |P_t| of the output after 20. The output residual
+  has a round-off floor of about eps cond(D_p): P = P0 + D_p (l - g) is
+  rebuilt in 3-D from the slip.
+
+Output: Markdown tables on stdout, also written to ``docs/contact.md`` under
+"Benchmark". Run: ``python studies/bench_contact.py``.
+"""
+from __future__ import annotations
+
+import platform
+import re
+import time
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+import symcushion.contact as contact
+from symcushion.contact import INPUT_NAMES, METHODS, OUTPUT_NAMES, contact_step, contact_step_expr
+
+#: Random cases per family.
+CASES = 20000
+#: Cases per batched call in the timing.
+BATCH = 10000
+#: Timing repeats; the best is reported (the least disturbed by the machine).
+BEST_OF = 5
+#: Wall time aimed at per timing repeat (s).
+REPEAT_SECONDS = 0.2
+#: Converged: Coulomb residual below this, relative to |P_t|.
+RESIDUAL_RTOL = 1e-13
+#: Converged: slip within this of its value after NEWTON_ITERS iterations,
+#: relative. Not tighter: once F(lam) is round-off the iterate dithers between
+#: neighbouring lam, which moves g by up to ~eps cond(D_p) (1e-9 at cond 1e8).
+SLIP_RTOL = 1e-8
+#: Cases per family in the Newton-iteration count.
+ITER_CASES = 4000
+
+DOC = Path(__file__).resolve().parent.parent / "docs" / "contact.md"
+SECTION = "Benchmark"
+
+
+# ---------------------------------------------------------------------------
+# random cases, as (6, ...) argument lists for a mapped Function
+# ---------------------------------------------------------------------------
+def _rotation(rng):
+    Q, R = np.linalg.qr(rng.normal(size=(3, 3)))
+    return Q * np.sign(np.diag(R))
+
+
+def _unit(v):
+    return v / np.linalg.norm(v)
+
+
+def plane_parallel_cases(rng, count):
+    """n, l, P0 in one plane; SPD D_p with that plane invariant."""
+    cases = []
+    for _ in range(count):
+        n = _unit(rng.normal(size=3))
+        x = _unit(np.cross(n, rng.normal(size=3)))
+        y = np.cross(n, x)
+        E = np.stack([x, n], 1)
+        th = rng.uniform(0, np.pi)
+        R2 = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
+        B = R2 @ np.diag([1, 10 ** rng.uniform(0, 3)]) @ R2.T * 10 ** rng.uniform(0, 3)
+        Dp = E @ B @ E.T + rng.uniform(0.1, 10) * B.max() * np.outer(y, y)
+        mu = 0.0 if rng.random() < 0.1 else rng.uniform(0.05, 2)
+        N0 = abs(rng.normal()) + 0.1
+        fraction = rng.choice([-1.0, 1.0]) if rng.random() < 0.5 else rng.uniform(-1, 1)
+        P0 = N0 * (n + fraction * mu * x)
+        l = E @ rng.normal(size=2) * 0.01 * 10 ** rng.uniform(-2, 1)
+        cases.append((P0, Dp, n, l, mu, np.linalg.solve(Dp, P0)))
+    return cases
+
+
+def spatial_cases(rng, count, max_log_cond=4.0, kind="mixed"):
+    """Random 3-D cases, mu in [0.05, 2].
+
+    kind: 'mixed' (half SPD, half SPD + skew), 'spd', 'skew' (SPD + skew,
+    positive-definite symmetric part), 'indefinite' (SPD + a general
+    perturbation of 30 % of its norm).
+    """
+    cases = []
+    for _ in range(count):
+        n = _unit(rng.normal(size=3))
+        ev = 10 ** rng.uniform(0, max_log_cond, 3)
+        ev[0], ev[1] = 1.0, 10**max_log_cond
+        Q = _rotation(rng)
+        Dp = Q @ np.diag(ev) @ Q.T * 10 ** rng.uniform(0, 3)
+        norm = np.linalg.norm(Dp, 2)
+        this = kind if kind != "mixed" else ("spd" if rng.random() < 0.5 else "skew")
+        if this == "skew":
+            W = rng.normal(size=(3, 3))
+            Dp = Dp + 0.3 * (W - W.T) * norm
+        elif this == "indefinite":
+            Dp = Dp + 0.3 * rng.normal(size=(3, 3)) * norm
+        mu = rng.uniform(0.05, 2)
+        t = _unit(np.cross(n, rng.normal(size=3)))
+        N0 = 10 ** rng.uniform(-1, 2)
+        fraction = 1.0 if rng.random() < 0.5 else rng.uniform(0, 1)
+        P0 = N0 * (n + fraction * mu * t)
+        l = rng.normal(size=3) * N0 / norm * 10 ** rng.uniform(-2, 1)
+        u0 = np.linalg.lstsq(Dp, P0, rcond=None)[0]
+        cases.append((P0, Dp, n, l, mu, u0))
+    return cases
+
+
+def stack(cases):
+    """Arguments of a mapped contact-step Function."""
+    return [
+        np.array([c[0] for c in cases]).T,
+        np.hstack([c[1] for c in cases]),
+        np.array([c[2] for c in cases]).T,
+        np.array([c[3] for c in cases]).T,
+        np.array([[c[4] for c in cases]]),
+        np.array([c[5] for c in cases]).T,
+    ]
+
+
+def evaluate(f, cases):
+    out = f.map(len(cases))(*stack(cases))
+    return {key: np.array(value) for key, value in zip(OUTPUT_NAMES, out)}
+
+
+# ---------------------------------------------------------------------------
+# measurements
+# ---------------------------------------------------------------------------
+def agreement(cases):
+    """Per method: errors relative to the force increment, and contact mismatches.
+
+    Split by what the implicit step does: stick (P_implicit = P0 + D_p l),
+    slip in contact, or lift-off.
+    """
+    P0 = stack(cases)[0]
+    ref = evaluate(contact_step("implicit"), cases)
+    increment = np.linalg.norm(ref["P"] - P0, axis=0)
+    in_contact = ref["contact"][0] == 1
+    slip = in_contact & (np.linalg.norm(ref["k"], axis=0) > 0)
+    stick = in_contact & ~slip
+    rows = {}
+    for method in METHODS:
+        out = evaluate(contact_step(method), cases)
+        error = np.linalg.norm(out["P"] - ref["P"], axis=0) / np.where(increment > 0, increment, 1)
+        both = slip & (out["contact"][0] == 1)
+        rows[method] = dict(
+            stick_max=error[stick].max(),
+            slip_count=int(slip.sum()),
+            slip_median=np.median(error[slip]),
+            slip_p99=np.percentile(error[slip], 99),
+            slip_max_both=error[both].max(),
+            differs=int((out["contact"][0] != ref["contact"][0]).sum()),
+            count=len(cases),
+        )
+    return rows
+
+
+def robust_breakdown(cases):
+    """Where robust and implicit disagree in the plane-parallel cases, and why."""
+    out = evaluate(contact_step("robust"), cases)
+    ref = evaluate(contact_step("implicit"), cases)
+    P0, _, n, l, mu, _ = stack(cases)
+    mu = mu[0]
+    increment = np.linalg.norm(ref["P"] - P0, axis=0)
+    error = np.linalg.norm(out["P"] - ref["P"], axis=0) / np.where(increment > 0, increment, 1)
+    both = (out["contact"][0] == 1) & (ref["contact"][0] == 1)
+    only_robust = (out["contact"][0] == 1) & (ref["contact"][0] == 0)
+    # friction against the slip in the robust answer: P_tau . g < 0
+    g = l - out["delta"]
+    g = g - np.sum(g * n, 0) * n
+    P_tau = out["P"] - np.sum(out["P"] * n, 0) * n
+    anti = np.sum(P_tau * g, 0) < 0
+    N_t = np.sum((P0 + np.einsum("ijk,jk->ik", stack_matrices(cases), l)) * n, 0)
+    worst_small_mu = np.argmax(np.where(both & (mu > 0), error, -1))
+    return dict(
+        both_mu_pos_max=error[both & (mu > 0)].max(),
+        both_mu_pos_p99=np.percentile(error[both & (mu > 0)], 99),
+        worst_mu=mu[worst_small_mu],
+        both_mu0_max=error[both & (mu == 0)].max(),
+        only_robust=int(only_robust.sum()),
+        only_robust_anti=int((only_robust & anti).sum()),
+        only_robust_tension=int((only_robust & (N_t <= 0)).sum()),
+        only_implicit=int(((out["contact"][0] == 0) & (ref["contact"][0] == 1)).sum()),
+        both_anti=int((both & (mu > 0) & anti).sum()),
+        count=len(cases),
+    )
+
+
+def stack_matrices(cases):
+    """D_p of every case, shape (3, 3, N)."""
+    return np.stack([c[1] for c in cases], axis=2)
+
+
+def newton_iterations(rng):
+    """First iteration count after which the implicit residual stays converged."""
+    syms = [ca.SX.sym(name, *shape) for name, shape in
+            zip(INPUT_NAMES, [(3, 1), (3, 3), (3, 1), (3, 1), (1, 1), (3, 1)])]
+    saved = contact.NEWTON_ITERS
+    functions = []
+    try:
+        for iters in range(saved + 1):
+            contact.NEWTON_ITERS = iters
+            out = contact_step_expr("implicit", *syms)
+            functions.append(ca.Function(f"implicit_{iters}", syms, [out[k] for k in OUTPUT_NAMES],
+                                         INPUT_NAMES, OUTPUT_NAMES))
+    finally:
+        contact.NEWTON_ITERS = saved
+    families = {
+        "SPD, cond ≤ 1e4": dict(max_log_cond=4.0, kind="spd"),
+        "SPD, cond 1e8": dict(max_log_cond=8.0, kind="spd"),
+        "SPD + skew, cond ≤ 1e4": dict(max_log_cond=4.0, kind="skew"),
+        "indefinite, cond ≤ 1e4": dict(max_log_cond=4.0, kind="indefinite"),
+    }
+    rows = []
+    for name, options in families.items():
+        cases = spatial_cases(rng, ITER_CASES, **options)
+        P0, Dp, n, l, mu, _ = stack(cases)
+        P_t = P0 + np.einsum("ijk,jk->ik", stack_matrices(cases), l)
+        slips = np.array([evaluate(f, cases)["k"] for f in functions])  # (iters + 1, 3, cases)
+        final = evaluate(functions[-1], cases)
+        P, g = final["P"], final["k"]
+        N = np.sum(P * n, 0)
+        g_norm = np.linalg.norm(g, axis=0)
+        slipping = (final["contact"][0] == 1) & (g_norm > 0)
+        R = P - N * n - mu[0] * N * g / np.where(g_norm > 0, g_norm, 1)
+        residual = np.linalg.norm(R, axis=0)[slipping] / np.linalg.norm(P_t, axis=0)[slipping]
+        converged = np.linalg.norm(slips - g, axis=1) <= SLIP_RTOL * g_norm
+        # first count from which every later count is converged
+        stays = np.flip(np.cumprod(np.flip(converged, 0), 0), 0).astype(bool)
+        needed = np.argmax(stays, 0)[slipping]
+        rows.append(dict(family=name, slipping=int(slipping.sum()), count=len(cases),
+                         p50=np.percentile(needed, 50), p99=np.percentile(needed, 99),
+                         max=needed.max(), above=int((residual > RESIDUAL_RTOL).sum()),
+                         median_residual=np.median(residual), worst=residual.max()))
+    return rows
+
+
+def evals_per_second(call, evals_per_call):
+    """Best-of-BEST_OF rate of ``call()``, in evaluations per second."""
+    call()
+    start = time.perf_counter()
+    count = 0
+    while time.perf_counter() - start < 0.05:
+        call()
+        count += 1
+    per_repeat = max(1, int(count * REPEAT_SECONDS / 0.05))
+    best = np.inf
+    for _ in range(BEST_OF):
+        start = time.perf_counter()
+        for _ in range(per_repeat):
+            call()
+        best = min(best, (time.perf_counter() - start) / per_repeat)
+    return evals_per_call / best
+
+
+def cost(cases):
+    args = stack(cases[:BATCH])
+    one = [a[:, 0] if a.shape[1] == BATCH else a[:, :3] for a in args]
+    one[4] = float(args[4][0, 0])
+    rows = []
+    for method in METHODS:
+        for friction in (True, False):
+            f = contact_step(method, friction)
+            batched = f.map(BATCH)
+            rows.append(dict(
+                function=f.name(), n_instructions=f.n_instructions(), n_nodes=f.n_nodes(),
+                single=evals_per_second(lambda: f(*one), 1),
+                batch=evals_per_second(lambda: batched(*args), BATCH)))
+    return rows
+
+
+# ---------------------------------------------------------------------------
+# output
+# ---------------------------------------------------------------------------
+def agreement_table(plane, spatial):
+    lines = ["| method | cases | implicit sticks: max | implicit slips: cases | median | p99 "
+             "| max, both in contact | contact differs |",
+             "|---|---|---:|---:|---:|---:|---:|---:|"]
+    for family, rows in (("plane-parallel", plane), ("3-D", spatial)):
+        for method in METHODS:
+            a = rows[method]
+            lines.append(
+                f"| `{method}` | {family} | {a['stick_max']:.1e} | {a['slip_count']} | "
+                f"{a['slip_median']:.1e} | {a['slip_p99']:.1e} | {a['slip_max_both']:.1e} | "
+                f"{a['differs']} / {a['count']} |")
+    return "\n".join(lines)
+
+
+def cost_table(rows):
+    lines = ["| Function | n_instructions | n_nodes | single call (evals/s) "
+             f"| map({BATCH}) (evals/s) |", "|---|---:|---:|---:|---:|"]
+    for row in rows:
+        lines.append(f"| `{row['function']}` | {row['n_instructions']} | {row['n_nodes']} "
+                     f"| {row['single']:,.0f} | {row['batch']:,.0f} |")
+    return "\n".join(lines)
+
+
+def iteration_table(rows):
+    lines = ["| family | slipping cases | iterations needed: median | p99 | max "
+             f"| residual: median | worst | cases > {RESIDUAL_RTOL:g} |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|"]
+    for row in rows:
+        lines.append(f"| {row['family']} | {row['slipping']} / {row['count']} | {row['p50']:.0f} "
+                     f"| {row['p99']:.0f} | {row['max']:.0f} | {row['median_residual']:.1e} "
+                     f"| {row['worst']:.1e} | {row['above']} |")
+    return "\n".join(lines)
+
+
+def breakdown_text(b):
+    return (
+        f"Robust vs implicit, plane-parallel cases ({b['count']}): where both keep contact "
+        f"and mu > 0 the worst error is {b['both_mu_pos_max']:.1e} of the force increment "
+        f"(p99 {b['both_mu_pos_p99']:.1e}; the worst case has mu = {b['worst_mu']:.3f}); "
+        f"with mu = 0 the worst is {b['both_mu0_max']:.1e}. The robust step keeps contact "
+        f"where the implicit one lifts off in {b['only_robust']} cases, all of them with "
+        f"friction along the slip in the robust answer (P_tau·g < 0: "
+        f"{b['only_robust_anti']} of {b['only_robust']}), {b['only_robust_tension']} of them "
+        f"with a tensile trial force n·P_t ≤ 0; the opposite happens in "
+        f"{b['only_implicit']} cases. Where both keep contact (mu > 0), "
+        f"{b['both_anti']} robust answers have P_tau·g < 0.")
+
+
+def write_section(path, heading, body):
+    """Replace the '## heading' section of a Markdown file (or append it)."""
+    text = path.read_text() if path.exists() else "# The contact step\n"
+    block = f"## {heading}\n\n{body.strip()}\n"
+    pattern = re.compile(rf"^## {re.escape(heading)}\n.*?(?=^## |\Z)", re.S | re.M)
+    if pattern.search(text):
+        text = pattern.sub(lambda _: block + "\n", text, count=1).rstrip() + "\n"
+    else:
+        text = text.rstrip() + "\n\n" + block
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text)
+
+
+def main() -> None:
+    rng = np.random.default_rng(2024)
+    plane = plane_parallel_cases(rng, CASES)
+    spatial = spatial_cases(rng, CASES)
+    table_a = agreement_table(agreement(plane), agreement(spatial))
+    breakdown = breakdown_text(robust_breakdown(plane))
+    table_b = cost_table(cost(spatial))
+    table_c = iteration_table(newton_iterations(rng))
+    environment = (f"CasADi {ca.__version__} on {platform.machine()} "
+                   f"({platform.python_implementation()} {platform.python_version()}), "
+                   f"serial map, best of {BEST_OF} repeats.")
+    body = "\n\n".join([
+        "Produced by `studies/bench_contact.py` (rerun to refresh). Error = "
+        "|P − P_implicit| / |P_implicit − P0|, the error relative to the force increment "
+        f"of the step, over {CASES} random plane-parallel and {CASES} random 3-D cases "
+        "(P0 on or inside the cone).",
+        "### Agreement with the implicit step", table_a, breakdown,
+        "### Size and speed", table_b, environment,
+        "### Newton iterations of the implicit step",
+        f"Over the cases that end slipping in contact (μ ∈ [0.05, 2]): the first "
+        f"iteration count from which the slip g stays within {SLIP_RTOL:g} (relative) of "
+        f"its value after {contact.NEWTON_ITERS} iterations, and the Coulomb residual "
+        f"|P_τ − μN g/|g|| / |P_t| of the output after {contact.NEWTON_ITERS}.",
+        table_c,
+    ])
+    print(body)
+    write_section(DOC, SECTION, body)
+    print(f"\nwritten to {DOC} under '## {SECTION}'")
+
+
+if __name__ == "__main__":
+    main()
