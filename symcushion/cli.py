@@ -1,4 +1,4 @@
-"""Command line: ``symcushion reproduce | simulate``.
+"""Command line: ``symcushion reproduce | simulate | codegen | optimise``.
 
 Each sub-command is a thin layer over the public API; it parses arguments,
 reports progress and turns library errors into one-line messages.
@@ -39,6 +39,44 @@ def _cmd_simulate(args):
     return 0
 
 
+def _cmd_codegen(args):
+    from .codegen import generate
+
+    try:
+        gen = generate(args.out, scene=args.scene, build=args.build, steps=args.steps,
+                       progress=True)
+    except RuntimeError as exc:  # a failed gcc command, with its output
+        print(f"symcushion codegen: error: {exc}", file=sys.stderr)
+        return 1
+    print(f"wrote {gen.header} and {', '.join(str(s) for s in gen.sources)}")
+    for built in (gen.library, gen.program):
+        if built is not None:
+            print(f"built {built}")
+    return 0
+
+
+def _cmd_optimise(args):
+    from .optimise import load_study
+
+    study = load_study(args.study)
+    if args.max_iter is not None:
+        if args.max_iter < 1:
+            raise ValueError(f"`--max-iter` must be a positive integer, got {args.max_iter}.")
+        study.ipopt["max_iter"] = args.max_iter
+    pb = study.problem
+    print(f"{study.name}: {len(pb.scenarios)} scenario(s), {pb.n_variables} design variables, "
+          f"{pb.lbg.size} constraints, objective {pb.objective_kind} (built in "
+          f"{pb.build_seconds:.1f} s)", flush=True)
+    result = study.solve(progress=True)
+    out = args.out if args.out is not None else Path("out") / f"{study.name}.json"
+    result.save_json(out)
+    print(result.message)
+    if result.efficiency is not None:
+        print(f"efficiency (ideal v²/2s + g over the achieved peak): {result.efficiency:.4f}")
+    print(f"wrote {out} ({result.timings['solve_seconds']:.1f} s)")
+    return 0 if result.success and result.evaluation.feasible else 1
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="symcushion", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -56,6 +94,26 @@ def main(argv=None) -> int:
     p.add_argument("--adaptive", action="store_true",
                    help="halve dt where the paper's criterion 1 - n_k.n_k+1 < eps fails")
     p.set_defaults(func=_cmd_simulate)
+
+    p = sub.add_parser("codegen", help="generate C code of the contact steps (and a scene's "
+                                       "touchdown); --build compiles it (docs/codegen.md)")
+    p.add_argument("--scene", type=Path, default=None,
+                   help="scene TOML file: adds its struts, touchdown_step, touchdown_rollout "
+                        "and the standalone program")
+    p.add_argument("--out", type=Path, required=True, help="output folder")
+    p.add_argument("--steps", type=int, default=None,
+                   help="N of touchdown_rollout (default: the scene's duration/dt)")
+    p.add_argument("--build", action="store_true",
+                   help="compile libsymcushion.so (and the program touchdown) with gcc")
+    p.set_defaults(func=_cmd_codegen)
+
+    p = sub.add_parser("optimise", help="optimise leg characteristics (a study TOML file), "
+                                        "write the result as JSON")
+    p.add_argument("study", type=Path)
+    p.add_argument("--out", type=Path, default=None,
+                   help="result JSON (default: out/<study name>.json)")
+    p.add_argument("--max-iter", type=int, default=None, help="override Ipopt's max_iter")
+    p.set_defaults(func=_cmd_optimise)
 
     args = parser.parse_args(argv)
     try:
