@@ -36,7 +36,6 @@ import argparse
 import importlib.util
 import json
 import platform
-import re
 import resource
 import subprocess
 import sys
@@ -52,6 +51,7 @@ from symcushion.codegen import CFLAGS, build_program, compiled_model, generate, 
 from symcushion.contact import METHODS, contact_step
 from symcushion.scene import load_scene
 from symcushion.simulate import build_model, initial_state
+from symcushion import report
 
 ROOT = Path(__file__).resolve().parent.parent
 DOC = ROOT / "docs" / "codegen.md"
@@ -427,17 +427,9 @@ def compile_section(tmp: Path, fig3_folder: Path) -> str:
     )
 
 
-def write_section(path: Path, heading: str, body: str) -> None:
-    """Replace the '## heading' section of a Markdown file (or append it)."""
-    text = path.read_text() if path.exists() else "# Generated C code\n"
-    block = f"## {heading}\n\n{body.strip()}\n"
-    pattern = re.compile(rf"^## {re.escape(heading)}\n.*?(?=^## |\Z)", re.S | re.M)
-    if pattern.search(text):
-        text = pattern.sub(lambda _: block + "\n", text, count=1).rstrip() + "\n"
-    else:
-        text = text.rstrip() + "\n\n" + block
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(text)
+def write_section(path, heading: str, body: str) -> None:
+    """Replace (or append) a section of this study's docs page."""
+    report.write_section(path, heading, body, title='# Generated C code')
 
 
 def main(argv=None) -> None:

@@ -39,7 +39,6 @@ Output: Markdown tables on stdout, also written to ``docs/contact.md`` under
 from __future__ import annotations
 
 import platform
-import re
 import time
 from pathlib import Path
 
@@ -48,6 +47,7 @@ import numpy as np
 
 import symcushion.contact as contact
 from symcushion.contact import INPUT_NAMES, METHODS, OUTPUT_NAMES, contact_step, contact_step_expr
+from symcushion import report
 
 #: Random cases per family.
 CASES = 20000
@@ -349,17 +349,9 @@ def breakdown_text(b):
         f"{b['both_anti']} robust answers have P_tau·g < 0.")
 
 
-def write_section(path, heading, body):
-    """Replace the '## heading' section of a Markdown file (or append it)."""
-    text = path.read_text() if path.exists() else "# The contact step\n"
-    block = f"## {heading}\n\n{body.strip()}\n"
-    pattern = re.compile(rf"^## {re.escape(heading)}\n.*?(?=^## |\Z)", re.S | re.M)
-    if pattern.search(text):
-        text = pattern.sub(lambda _: block + "\n", text, count=1).rstrip() + "\n"
-    else:
-        text = text.rstrip() + "\n\n" + block
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(text)
+def write_section(path, heading: str, body: str) -> None:
+    """Replace (or append) a section of this study's docs page."""
+    report.write_section(path, heading, body, title='# The contact step')
 
 
 def main() -> None:

@@ -22,7 +22,6 @@ Output: a Markdown table on stdout, also written to ``docs/strut.md`` under
 from __future__ import annotations
 
 import platform
-import re
 import time
 from pathlib import Path
 
@@ -30,6 +29,7 @@ import casadi as ca
 import numpy as np
 
 from symcushion import Crushable, HingedStrut, Linear
+from symcushion import report
 
 #: Poses per batched call.
 BATCH = 1000
@@ -197,17 +197,9 @@ def summary(rows: list[dict]) -> str:
         f"`python studies/bench_strut.py` to refresh.")
 
 
-def write_section(path: Path, heading: str, body: str) -> None:
-    """Replace the '## heading' section of a Markdown file (or append it)."""
-    text = path.read_text() if path.exists() else "# The hinged strut\n"
-    block = f"## {heading}\n\n{body.strip()}\n"
-    pattern = re.compile(rf"^## {re.escape(heading)}\n.*?(?=^## |\Z)", re.S | re.M)
-    if pattern.search(text):
-        text = pattern.sub(lambda _: block + "\n", text, count=1).rstrip() + "\n"
-    else:
-        text = text.rstrip() + "\n\n" + block
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(text)
+def write_section(path, heading: str, body: str) -> None:
+    """Replace (or append) a section of this study's docs page."""
+    report.write_section(path, heading, body, title='# The hinged strut')
 
 
 def main() -> None:

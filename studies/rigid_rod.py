@@ -20,13 +20,13 @@ Output: a Markdown table on stdout, also written to ``docs/strut.md`` under
 """
 from __future__ import annotations
 
-import re
 from pathlib import Path
 
 import numpy as np
 
 from symcushion import HingedStrut, Linear
 from symcushion.strut import RIGID_AXIAL_RATIO
+from symcushion import report
 
 # The Figs. 3–4 scene (studies/fig3.toml), leg 0 in body coordinates.
 MASS = 50.0                        # kg
@@ -149,17 +149,9 @@ def summary(rows: list[dict]) -> str:
         f"hinges or a lighter body must lower it.")
 
 
-def write_section(path: Path, heading: str, body: str) -> None:
-    """Replace the '## heading' section of a Markdown file (or append it)."""
-    text = path.read_text() if path.exists() else "# The hinged strut\n"
-    block = f"## {heading}\n\n{body.strip()}\n"
-    pattern = re.compile(rf"^## {re.escape(heading)}\n.*?(?=^## |\Z)", re.S | re.M)
-    if pattern.search(text):
-        text = pattern.sub(lambda _: block + "\n", text, count=1).rstrip() + "\n"
-    else:
-        text = text.rstrip() + "\n\n" + block
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(text)
+def write_section(path, heading: str, body: str) -> None:
+    """Replace (or append) a section of this study's docs page."""
+    report.write_section(path, heading, body, title='# The hinged strut')
 
 
 def main() -> None:
