@@ -49,7 +49,7 @@ import numpy as np
 
 from .characteristics import Curve, PiecewiseLinear
 from .obstacles import closest_obstacle
-from .scene import Scene, scene_from_dict
+from .scene import Scene, _Table, scene_from_dict
 from .simulate import _BODY_OUT, _BODY_STATE, _LEG_OUT, _LEG_STATE, build_model, initial_state
 
 if sys.version_info >= (3, 11):
@@ -1176,84 +1176,13 @@ def _jsonable(obj):
 # ---------------------------------------------------------------------------
 # study files
 # ---------------------------------------------------------------------------
-class _Fields:
-    """A TOML table with its path, for messages that name the field."""
+class _Fields(_Table):
+    """A study-file table: the scene files' field checker, with ±inf allowed."""
 
-    def __init__(self, data, path, source):
-        if not isinstance(data, dict):
-            raise ValueError(f"{source}: `{path}` must be a table, got {data!r}.")
-        self.data, self.path, self.source = data, path, source
-        self.used = set()
-
-    def _where(self, key):
-        return f"{self.path}.{key}" if self.path else key
-
-    def error(self, key, value, allowed):
-        return ValueError(f"{self.source}: field `{self._where(key)}` = {value!r} is invalid; "
-                          f"allowed: {allowed}.")
-
-    def get(self, key, default=..., kind="number", choices=None, positive=False,
-            nonnegative=False):
-        self.used.add(key)
-        if key not in self.data:
-            if default is ...:
-                raise ValueError(f"{self.source}: missing field `{self._where(key)}` ({kind}).")
-            return default
-        value = self.data[key]
-        if kind == "number":
-            ok = not isinstance(value, bool) and isinstance(value, (int, float)) \
-                and not math.isnan(value)
-            if not ok or (positive and not value > 0) or (nonnegative and not value >= 0):
-                raise self.error(key, value, "a positive number" if positive else
-                                 "a non-negative number" if nonnegative else "a number")
-            return float(value)
-        if kind == "int":
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise self.error(key, value, "a positive integer")
-            return value
-        if kind == "string":
-            if not isinstance(value, str) or (choices and value not in choices):
-                raise self.error(key, value, f"one of {list(choices)}" if choices else "a string")
-            return value
-        if kind == "strings":
-            if isinstance(value, str):
-                return [value]
-            if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
-                raise self.error(key, value, "a string or a list of strings")
-            return value
-        if kind == "bool":
-            if not isinstance(value, bool):
-                raise self.error(key, value, "true or false")
-            return value
-        if kind == "vector":
-            ok = isinstance(value, list) and all(
-                isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
-            if not ok:
-                raise self.error(key, value, "a list of numbers")
-            return np.asarray(value, dtype=float)
-        if kind == "table":
-            return _Fields(value, self._where(key), self.source)
-        if kind == "tables":
-            if not isinstance(value, list):
-                raise self.error(key, value, "an array of tables ([[...]])")
-            return [_Fields(v, f"{self._where(key)}[{i}]", self.source)
-                    for i, v in enumerate(value)]
-        if kind == "any":
-            return value
-        raise AssertionError(kind)
-
-    def has(self, key):
-        return key in self.data
-
-    def finish(self):
-        unknown = sorted(set(self.data) - self.used)
-        if unknown:
-            where = f"`{self.path}`" if self.path else "the top level"
-            raise ValueError(f"{self.source}: unknown field(s) {unknown} in {where}; "
-                             "check the spelling against docs/optimise.md.")
+    docs = "docs/optimise.md"
+    finite_numbers = False
 
 
-#: Top-level tables of a study file that describe the scene (scene file format).
 _SCENE_KEYS = ("scene", "body", "legs", "leg", "obstacle")
 #: Body initial conditions a scenario may override (no new model needed).
 _INITIAL = ("position", "velocity", "attitude", "angular_velocity")

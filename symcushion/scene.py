@@ -211,7 +211,14 @@ def symmetric_legs(count: int, radius: float, height: float, length: float, e0_l
 # TOML
 # ---------------------------------------------------------------------------
 class _Table:
-    """A TOML table with its path, for error messages that name the field."""
+    """A TOML table with its path, for error messages that name the field.
+
+    Subclasses may point ``docs`` at their own format page and set
+    ``finite_numbers = False`` to accept ±inf (e.g. unbounded limits).
+    """
+
+    docs = "docs/scenes.md"
+    finite_numbers = True
 
     def __init__(self, data, path, source):
         if not isinstance(data, dict):
@@ -226,7 +233,12 @@ class _Table:
         return ValueError(f"{self.source}: field `{self._where(key)}` = {value!r} is invalid; "
                           f"allowed: {allowed}.")
 
-    def get(self, key, default=..., kind="number", size=None, choices=None, positive=False):
+    def _finite(self, value) -> bool:
+        value = np.asarray(value, dtype=float)
+        return bool(np.all(np.isfinite(value) if self.finite_numbers else ~np.isnan(value)))
+
+    def get(self, key, default=..., kind="number", size=None, choices=None, positive=False,
+            nonnegative=False):
         self.used.add(key)
         if key not in self.data:
             if default is ...:
@@ -234,9 +246,11 @@ class _Table:
             return default
         value = self.data[key]
         if kind == "number":
-            if isinstance(value, bool) or not isinstance(value, (int, float)) \
-                    or not np.isfinite(value) or (positive and value <= 0):
-                raise self.error(key, value, "a positive number" if positive else "a finite number")
+            ok = not isinstance(value, bool) and isinstance(value, (int, float)) \
+                and self._finite(value)
+            if not ok or (positive and not value > 0) or (nonnegative and not value >= 0):
+                raise self.error(key, value, "a positive number" if positive else
+                                 "a non-negative number" if nonnegative else "a finite number")
             return float(value)
         if kind == "int":
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
@@ -245,8 +259,7 @@ class _Table:
         if kind == "vector":
             ok = isinstance(value, list) and all(
                 isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
-            if not ok or (size is not None and len(value) != size) \
-                    or not np.all(np.isfinite(np.asarray(value, dtype=float))):
+            if not ok or (size is not None and len(value) != size) or not self._finite(value):
                 raise self.error(key, value, f"a list of {size} finite numbers")
             return np.asarray(value, dtype=float)
         if kind == "string":
@@ -257,12 +270,21 @@ class _Table:
             if not isinstance(value, bool):
                 raise self.error(key, value, "true or false")
             return value
+        if kind == "strings":
+            if isinstance(value, str):
+                return [value]
+            if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+                raise self.error(key, value, "a string or a list of strings")
+            return value
         if kind == "table":
-            return _Table(value, self._where(key), self.source)
+            return type(self)(value, self._where(key), self.source)
         if kind == "tables":
             if not isinstance(value, list):
-                raise self.error(key, value, "an array of tables")
-            return [_Table(v, f"{self._where(key)}[{i}]", self.source) for i, v in enumerate(value)]
+                raise self.error(key, value, "an array of tables ([[...]])")
+            return [type(self)(v, f"{self._where(key)}[{i}]", self.source)
+                    for i, v in enumerate(value)]
+        if kind == "any":
+            return value
         raise AssertionError(kind)
 
     def has(self, key):
@@ -273,7 +295,7 @@ class _Table:
         if unknown:
             where = self.path or "the top level"
             raise ValueError(f"{self.source}: unknown field(s) {unknown} in `{where}`; "
-                             "check the spelling against docs/scenes.md.")
+                             f"check the spelling against {self.docs}.")
 
 
 _CURVES = ("linear", "piecewise", "crushable")

@@ -549,7 +549,7 @@ def test_implicit_spec_two_roots_limitation():
 
 
 def test_implicit_removable_pole_mu0():
-    """Was a strict xfail of the first spec draft (a removable pole lifted
+    """Was a known failure of the first spec draft (a removable pole lifted
     the foot off); the active-pole rule of spec section 3 fixed it.
     K = diag(10, -5): det(K + lam I) = 0 at lam = 5, but the residue
     v = adj(K + 5 I) p = 0, so the pole is not active; F_lo = F(0) = 0 and
