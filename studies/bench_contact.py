@@ -46,7 +46,8 @@ import casadi as ca
 import numpy as np
 
 import symcushion.contact as contact
-from symcushion.contact import INPUT_NAMES, METHODS, OUTPUT_NAMES, contact_step, contact_step_expr
+from symcushion.contact import (INPUT_NAMES, METHODS, OUTPUT_NAMES, contact_step, contact_step_expr,
+                                stack_inputs)
 from symcushion import report
 
 #: Random cases per family.
@@ -137,14 +138,7 @@ def spatial_cases(rng, count, max_log_cond=4.0, kind="mixed"):
 
 def stack(cases):
     """Arguments of a mapped contact-step Function."""
-    return [
-        np.array([c[0] for c in cases]).T,
-        np.hstack([c[1] for c in cases]),
-        np.array([c[2] for c in cases]).T,
-        np.array([c[3] for c in cases]).T,
-        np.array([[c[4] for c in cases]]),
-        np.array([c[5] for c in cases]).T,
-    ]
+    return stack_inputs(cases)
 
 
 def evaluate(f, cases):

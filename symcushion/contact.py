@@ -55,6 +55,7 @@ __all__ = [
     "contact_step",
     "contact_step_expr",
     "solve_contact",
+    "stack_inputs",
 ]
 
 # Relative tolerance of the cone tests C(P) <= CONE_TOL*|P|^2 in the robust
@@ -772,3 +773,26 @@ def solve_contact(method, P0, Dp, n, l, mu, u0=None):
         arr.flags.writeable = False
         arrays[key] = arr
     return ContactResult(contact=bool(float(out["contact"]) > 0.5), **arrays)
+
+
+def stack_inputs(cases):
+    """Arguments of ``contact_step(method).map(len(cases))`` from a list of cases.
+
+    Parameters
+    ----------
+    cases : sequence of (P0, Dp, n, l, mu, u0)
+        Per case: P0 (3,), Dp (3, 3), n (3,), l (3,), mu scalar, u0 (3,).
+
+    Returns
+    -------
+    list of ndarray
+        P0, n, l, u0 as (3, N); Dp as (3, 3N); mu as (1, N).
+    """
+    return [
+        np.array([c[0] for c in cases], dtype=float).T,
+        np.hstack([np.asarray(c[1], dtype=float) for c in cases]),
+        np.array([c[2] for c in cases], dtype=float).T,
+        np.array([c[3] for c in cases], dtype=float).T,
+        np.array([[c[4] for c in cases]], dtype=float),
+        np.array([c[5] for c in cases], dtype=float).T,
+    ]

@@ -49,7 +49,7 @@ import numpy as np
 
 from .characteristics import Curve, PiecewiseLinear
 from .obstacles import closest_obstacle
-from .scene import Scene, _Table, scene_from_dict
+from .scene import Scene, _Table, read_toml, scene_from_dict
 from .simulate import _BODY_OUT, _BODY_STATE, _LEG_OUT, _LEG_STATE, build_model, initial_state
 
 if sys.version_info >= (3, 11):
@@ -1207,13 +1207,7 @@ class Study:
 def load_study(path) -> Study:
     """Load a design study from a TOML file (format: docs/optimise.md)."""
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"study file {str(path)!r} does not exist.")
-    try:
-        data = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"{path}: not valid TOML: {exc}") from None
-    return study_from_dict(data, str(path), base_dir=path.parent)
+    return study_from_dict(read_toml(path, "study"), str(path), base_dir=path.parent)
 
 
 def study_from_dict(data: dict, source: str = "<dict>", base_dir=".") -> Study:

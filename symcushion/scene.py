@@ -464,13 +464,17 @@ def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
     return scene
 
 
-def load_scene(path) -> Scene:
-    """Load a scene from a TOML file (format: docs/scenes.md)."""
+def read_toml(path, what: str = "scene") -> dict:
+    """Parse a TOML file; a missing file or bad TOML gets a message naming it."""
     path = Path(path)
     if not path.is_file():
-        raise FileNotFoundError(f"scene file {str(path)!r} does not exist.")
+        raise FileNotFoundError(f"{what} file {str(path)!r} does not exist.")
     try:
-        data = tomllib.loads(path.read_text())
+        return tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as exc:
         raise ValueError(f"{path}: not valid TOML: {exc}") from None
-    return scene_from_dict(data, str(path))
+
+
+def load_scene(path) -> Scene:
+    """Load a scene from a TOML file (format: docs/scenes.md)."""
+    return scene_from_dict(read_toml(path, "scene"), str(path))

@@ -21,6 +21,7 @@ from symcushion.contact import (
     contact_step,
     contact_step_expr,
     solve_contact,
+    stack_inputs,
 )
 
 # Tolerances of the tests (not of the method).
@@ -61,18 +62,9 @@ def step(method, P0, Dp, n, l, mu, u0=None):
 def batch(method, cases):
     """Evaluate a list of (P0, Dp, n, l, mu, u0) with .map; dict of (3, N) arrays."""
     f = contact_step(method).map(len(cases))
-    return {k: np.array(v) for k, v in zip(OUTPUT_NAMES, f(*_stack(cases)))}
+    return {k: np.array(v) for k, v in zip(OUTPUT_NAMES, f(*stack_inputs(cases)))}
 
 
-def _stack(cases):
-    return [
-        np.array([c[0] for c in cases]).T,
-        np.hstack([c[1] for c in cases]),
-        np.array([c[2] for c in cases]).T,
-        np.array([c[3] for c in cases]).T,
-        np.array([[c[4] for c in cases]]),
-        np.array([c[5] for c in cases]).T,
-    ]
 
 
 
@@ -624,7 +616,7 @@ def jacobian_cases():
 @pytest.mark.parametrize("method", METHODS)
 def test_jacobians_finite(jacobians, method):
     cases = jacobian_cases()
-    J = np.array(jacobians[method].map(len(cases))(*_stack(cases)))
+    J = np.array(jacobians[method].map(len(cases))(*stack_inputs(cases)))
     assert np.all(np.isfinite(J))
 
 
