@@ -50,7 +50,7 @@ import numpy as np
 from .characteristics import Curve, PiecewiseLinear
 from .obstacles import closest_obstacle
 from .scene import Scene, _Table, read_toml, scene_from_dict
-from .simulate import _BODY_OUT, _BODY_STATE, _LEG_OUT, _LEG_STATE, build_model, initial_state
+from .simulate import BODY_OUT, BODY_STATE, LEG_OUT, LEG_STATE, build_model, initial_state
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -534,7 +534,7 @@ class DesignProblem:
             X, Y = model.rollout(scene.steps)(ca.DM(s.x0), p, scene.dt)
             acc = ca.mtimes(ca.DM(up).T, Y[0:3, :] - ca.repmat(ca.DM(scene.gravity), 1,
                                                                  scene.steps))
-            legs_out = [Y[_BODY_OUT + _LEG_OUT * j: _BODY_OUT + _LEG_OUT * (j + 1), :]
+            legs_out = [Y[BODY_OUT + LEG_OUT * j: BODY_OUT + LEG_OUT * (j + 1), :]
                         for j in range(model.n_legs)]
             strokes = [lo[11, :] for lo in legs_out]
             betas = [lo[12, :] for lo in legs_out]
@@ -731,7 +731,7 @@ class DesignProblem:
         # lowest foot (energy; the legs are free until then)
         heights = []
         for j, leg in enumerate(scene.legs):
-            foot = s.x0[_BODY_STATE + _LEG_STATE * j: _BODY_STATE + _LEG_STATE * j + 3]
+            foot = s.x0[BODY_STATE + LEG_STATE * j: BODY_STATE + LEG_STATE * j + 3]
             d, _, _ = closest_obstacle(scene.obstacles, ca.DM(foot))
             heights.append(float(d))
         g = float(np.linalg.norm(scene.gravity))

@@ -44,7 +44,8 @@ from .obstacles import closest_obstacle
 from .scene import Scene
 
 __all__ = ["StepModel", "Trajectory", "build_model", "simulate", "initial_state",
-           "equilibrium_state", "MODES", "STEP_CRITERION_EPS"]
+           "equilibrium_state", "MODES", "STEP_CRITERION_EPS", "BODY_STATE", "LEG_STATE",
+           "BODY_OUT", "LEG_OUT"]
 
 #: Codes of the ``mode`` output of each leg.
 MODES = {0: "free", 1: "stick", 2: "slip", 3: "lift-off"}
@@ -56,10 +57,17 @@ STEP_CRITERION_EPS = 3e-5
 #: Deepest halving of Δt by the adaptive driver (Δt/2¹⁰ at most).
 MAX_HALVINGS = 10
 
-_LEG_STATE = 7   # foot world position (3), contact flag, force on foot, body frame (3)
-_BODY_STATE = 13  # position, velocity, quaternion (w, x, y, z), angular velocity (body)
-_LEG_OUT = 14    # contact, mode, P world (3), normal (3), e_S world (3), δ_S, β, γ−γ₀
-_BODY_OUT = 3    # acceleration of the centre of mass, world
+# Layout of the state x and the per-step output y (public: the C API and the
+# optimiser index them). x = [body (BODY_STATE), leg 0 (LEG_STATE), leg 1, ...],
+# y = [body (BODY_OUT), leg 0 (LEG_OUT), leg 1, ...].
+#: Body state: position (3), velocity (3), quaternion w, x, y, z (4), angular velocity, body axes (3).
+BODY_STATE = 13
+#: Leg state: foot world position (3), contact flag (1), force on the foot, body frame (3).
+LEG_STATE = 7
+#: Body output: acceleration of the centre of mass, world (3).
+BODY_OUT = 3
+#: Leg output: contact, mode, P world (3), normal (3), e_S world (3), δ_S, β, γ − γ₀.
+LEG_OUT = 14
 
 
 # ---------------------------------------------------------------------------
@@ -167,8 +175,8 @@ def build_model(scene: Scene) -> StepModel:
     legs, body = scene.legs, scene.body
     n_legs = len(legs)
     names, offsets = _leg_params(scene)
-    nx = _BODY_STATE + _LEG_STATE * n_legs
-    ny = _BODY_OUT + _LEG_OUT * n_legs
+    nx = BODY_STATE + LEG_STATE * n_legs
+    ny = BODY_OUT + LEG_OUT * n_legs
 
     X = ca.SX.sym("x", nx)
     p = ca.SX.sym("p", len(names))
@@ -182,7 +190,7 @@ def build_model(scene: Scene) -> StepModel:
     friction = mu > 0
 
     pos, vel, quat, omega = X[0:3], X[3:6], X[6:10], X[10:13]
-    feet = [X[_BODY_STATE + _LEG_STATE * j: _BODY_STATE + _LEG_STATE * (j + 1)]
+    feet = [X[BODY_STATE + LEG_STATE * j: BODY_STATE + LEG_STATE * (j + 1)]
             for j in range(n_legs)]
     rest = [ca.DM(leg.rest_foot) for leg in legs]
 
@@ -468,8 +476,8 @@ def trajectory_from(model: StepModel, x0, X, Y, t) -> Trajectory:
     N = model.n_legs
     X = np.column_stack([np.asarray(x0, float).reshape(-1, 1), np.asarray(X, float)]).T
     Y = np.asarray(Y, float).T
-    legs_x = X[:, _BODY_STATE:].reshape(len(X), N, _LEG_STATE)
-    legs_y = Y[:, _BODY_OUT:].reshape(len(Y), N, _LEG_OUT)
+    legs_x = X[:, BODY_STATE:].reshape(len(X), N, LEG_STATE)
+    legs_y = Y[:, BODY_OUT:].reshape(len(Y), N, LEG_OUT)
     # the initial row has no step output: forces come from the state, geometry is NaN
     pad = lambda arr: np.concatenate([arr[:1] * np.nan, arr], axis=0)  # noqa: E731
     up = -scene.gravity / np.linalg.norm(scene.gravity)
@@ -553,7 +561,7 @@ def _default_p(scene):
 
 def _normals(model, y):
     N = model.n_legs
-    legs_y = np.asarray(y, float).ravel()[_BODY_OUT:].reshape(N, _LEG_OUT)
+    legs_y = np.asarray(y, float).ravel()[BODY_OUT:].reshape(N, LEG_OUT)
     return legs_y[:, 0] > 0.5, legs_y[:, 5:8]
 
 
