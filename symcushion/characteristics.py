@@ -188,7 +188,7 @@ class Curve:
             return 0.5 * (1 + ca.tanh(x * rate / self.rate_width))
         return ca.if_else(x * rate >= 0, 1.0, 0.0)
 
-    def force(self, x, rate=0.0, theta=None):
+    def force(self, x, rate=0.0, theta=None, branch_x=None):
         """Resistance f(x, sign ẋ) of the element.
 
         Parameters
@@ -200,6 +200,11 @@ class Curve:
             ``rate_width`` when smooth). Default 0: the loading branch.
         theta : array_like or casadi vector, optional
             Flat parameter vector (``param_names``); default the numbers given.
+        branch_x : float or casadi.SX/MX, optional
+            Deflection used in the branch test x·ẋ only (default ``x``). The
+            strut passes a frozen copy so that its stiffness, the derivative
+            in x, is that of the active branch (2.3) and not the derivative of
+            the smooth branch weight (see ``HingedStrut.functions``).
 
         Returns
         -------
@@ -210,7 +215,7 @@ class Curve:
         th_load, th_unload = self._split(theta)
         value = self._loading(x, th_load)
         if self.unloading is not None:
-            weight = self._weight(x, rate)
+            weight = self._weight(x if branch_x is None else branch_x, rate)
             value = weight * value + (1 - weight) * self.unloading._loading(x, th_unload)
         return _numeric_out(value, symbolic)
 

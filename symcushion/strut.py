@@ -230,19 +230,30 @@ class HingedStrut:
     def _deflections(self, g):
         return dict(S=g["delta_S"], M_beta=g["beta"], M_gamma=g["gamma"] - self.gamma0)
 
-    def element_forces(self, g, v, p):
-        """S, M_β, M_γ of (2.1), with the orientation sign of M_γ applied."""
-        x, rate = self._deflections(g), self.rates(g, v)
+    def element_forces(self, g, v, p, g_branch=None):
+        """S, M_β, M_γ of (2.1), with the orientation sign of M_γ applied.
+
+        ``g_branch`` (default ``g``): the geometry whose deflections and rates
+        select the loading or unloading branch.
+        """
+        x = self._deflections(g)
+        g_branch = g if g_branch is None else g_branch
+        x_branch, rate = self._deflections(g_branch), self.rates(g_branch, v)
         out = dict(S=0.0, M_beta=0.0, M_gamma=0.0)
         for el in self.elements:
-            out[el.name] = el.curve.force(x[el.name], rate[el.name], self._theta(el, p))
+            out[el.name] = el.curve.force(x[el.name], rate[el.name], self._theta(el, p),
+                                          branch_x=x_branch[el.name])
         out["M_gamma"] = -self.sigma * out["M_gamma"]                  # NOTES §2
         return out
 
-    def force_expr(self, r, v, p):
-        """P(r) of (2.1) as a CasADi expression (N)."""
+    def force_expr(self, r, v, p, r_branch=None):
+        """P(r) of (2.1) as a CasADi expression (N).
+
+        ``r_branch`` (default ``r``): the foot position whose deflections and
+        rates select the branches; the stiffness differentiates with it held.
+        """
         g = self.geometry(r)
-        f = self.element_forces(g, v, p)
+        f = self.element_forces(g, v, p, None if r_branch is None else self.geometry(r_branch))
         return (f["S"] * g["e_S"] + f["M_beta"] / g["L"] * g["e_beta"]
                 + f["M_gamma"] / g["L"] * g["e_gamma"])                # (2.1)
 
@@ -302,7 +313,12 @@ class HingedStrut:
             v = ca.SX.sym("v", 3)
             p = ca.SX.sym("p", len(self.param_names))
             P = self.force_expr(r, v, p)
-            Dp = ca.jacobian(P, r)
+            # D_p = ∂P/∂r with the branches held (the active branch's slope, as
+            # in (2.3)): with smooth curves the branch weight w(x·ẋ) also
+            # depends on r, and its derivative ẋ/(2·rate_width)·(f_L − f_U) is
+            # not a stiffness — it can make D_p indefinite at touchdown.
+            r_branch = ca.SX.sym("r_branch", 3)
+            Dp = ca.substitute(ca.jacobian(self.force_expr(r, v, p, r_branch), r), r_branch, r)
             Dp_paper = self.stiffness_paper_expr(r, v, p)
             g = self.geometry(r)
             names_in = ["r", "v", "p"]
