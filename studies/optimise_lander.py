@@ -8,9 +8,12 @@ the largest vertical deceleration over all four touchdowns and all steps,
 with the axial stroke ≤ 0.25 m, hinge deflections ≤ 0.05 rad, body tilt
 ≤ 15° and the descent arrested within 0.25 s (docs/optimise.md).
 
-Output: ``out/optimise_lander.json`` (the result, as ``symcushion optimise``
-writes it) and ``figures/optimise_lander.png`` (the characteristic before
-and after, and the deceleration of each touchdown with the optimum).
+Output: ``figures/optimise_lander.json`` (the result, as ``symcushion
+optimise`` writes it; ``tests/test_optimise.py`` checks the gradient at its
+optimum), ``figures/optimise_lander.md`` (the table: peaks before and after,
+the margin of every limit in every touchdown, iterations and time) and
+``figures/optimise_lander.png`` (the characteristic before and after, and
+the deceleration and stroke histories of each touchdown with the optimum).
 Run: ``python studies/optimise_lander.py`` (a few minutes).
 """
 from __future__ import annotations
@@ -27,14 +30,59 @@ ROOT = Path(__file__).resolve().parents[1]
 STUDY = ROOT / "studies" / "optimise_lander.toml"
 
 
-def deceleration_histories(result):
-    """Vertical deceleration (m/s², gravity excluded) of each scenario at the optimum."""
+def histories(result):
+    """Vertical deceleration (m/s², gravity excluded) and the largest axial
+    stroke over the legs (m) of each scenario at the optimum."""
     problem = result.problem
     out = {}
     for scenario in problem.scenarios:
         traj = simulate(scenario.scene, x0=scenario.x0, p=result.p)
-        out[scenario.name] = (traj.t, traj.acceleration[:, 2] - scenario.scene.gravity[2])
+        stroke = np.nan_to_num(-traj.stroke).max(axis=1)
+        out[scenario.name] = (traj.t, traj.acceleration[:, 2] - scenario.scene.gravity[2], stroke)
     return out
+
+
+def margins(result) -> list[dict]:
+    """Per scenario: peaks before and after, and each limit's margin at the optimum."""
+    limits = result.problem.limits
+    rows = []
+    for name, after in result.evaluation.scenarios.items():
+        v_up = after["final_vertical_speed"]
+        rows.append(dict(
+            scenario=name,
+            peak_hand=result.initial.scenarios[name]["peak_deceleration"],
+            peak_optimum=after["peak_deceleration"],
+            stroke=after["max_stroke"], stroke_margin=limits.stroke - after["max_stroke"],
+            hinge_margin=min(limits.beta - after["max_beta"], limits.gamma - after["max_gamma"]),
+            tilt=after["max_tilt"], tilt_margin=limits.tilt - after["max_tilt"],
+            v_up=v_up, rebound_margin=limits.rebound_speed - v_up,
+            sink_margin=limits.sink_speed + v_up))
+    return rows
+
+
+def _m(value, digits):
+    """A margin rounded to ``digits``, without a sign on a rounded zero."""
+    return f"{round(value, digits) + 0.0:.{digits}f}"
+
+
+def table(result) -> str:
+    """The Markdown table of :func:`margins`, with status, iterations and time."""
+    d = result.to_dict()
+    lines = [f"Ipopt {result.return_status} after {result.iterations} iterations, "
+             f"{d['seconds']:.0f} s (build {result.timings['build_seconds']:.1f} s); "
+             f"worst-case peak {result.initial.objective:.2f} → "
+             f"{result.evaluation.objective:.2f} m/s²; every limit met: "
+             f"{'yes' if result.evaluation.feasible else 'NO'}.", "",
+             "| touchdown | peak, hand design (m/s²) | peak, optimum (m/s²) | max stroke (m) "
+             "| stroke margin (m) | hinge margin (rad) | max tilt | tilt margin "
+             "| final v_up (m/s) | rebound margin (m/s) | sink margin (m/s) |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for r in margins(result):
+        lines.append(f"| {r['scenario']} | {r['peak_hand']:.2f} | {r['peak_optimum']:.2f} "
+                     f"| {r['stroke']:.4f} | {_m(r['stroke_margin'], 4)} | {_m(r['hinge_margin'], 4)} "
+                     f"| {np.degrees(r['tilt']):.1f}° | {np.degrees(r['tilt_margin']):.1f}° "
+                     f"| {r['v_up']:.3f} | {_m(r['rebound_margin'], 3)} | {_m(r['sink_margin'], 3)} |")
+    return "\n".join(lines) + "\n"
 
 
 def plot(result, path):
@@ -44,7 +92,7 @@ def plot(result, path):
     import matplotlib.pyplot as plt
 
     data = result.to_dict()
-    fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4.2))
+    fig, (left, mid, right) = plt.subplots(1, 3, figsize=(15, 4.2))
     for key, char in data["characteristic"].items():
         start = data["initial_characteristic"][key]
         x = -np.asarray(char["x"]) * 1e3
@@ -60,12 +108,17 @@ def plot(result, path):
     left.set(xlabel="axial stroke −δ_S (mm)", ylabel="axial force −S (N)",
              title="characteristic shared by the four legs")
     left.legend(fontsize=8)
-    for name, (t, a) in deceleration_histories(result).items():
-        right.plot(t, a, label=name)
-    right.axhline(result.evaluation.objective, color="k", lw=0.8, ls="--",
-                  label=f"peak {result.evaluation.objective:.1f} m/s²")
-    right.set(xlabel="t (s)", ylabel="vertical deceleration (m/s²)",
-              title="touchdowns with the optimum")
+    for name, (t, a, s) in histories(result).items():
+        mid.plot(t, a, label=name)
+        right.plot(t, s * 1e3, label=name)
+    mid.axhline(result.evaluation.objective, color="k", lw=0.8, ls="--",
+                label=f"peak {result.evaluation.objective:.1f} m/s²")
+    mid.set(xlabel="t (s)", ylabel="vertical deceleration (m/s²)",
+            title="touchdowns with the optimum")
+    mid.legend(fontsize=8)
+    right.axhline(stroke, color="k", lw=0.8, ls="--", label="stroke limit")
+    right.set(xlabel="t (s)", ylabel="largest axial stroke over the legs (mm)",
+              title="strokes with the optimum")
     right.legend(fontsize=8)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -75,7 +128,8 @@ def plot(result, path):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=ROOT / "out" / "optimise_lander.json")
+    parser.add_argument("--out", type=Path, default=ROOT / "figures" / "optimise_lander.json")
+    parser.add_argument("--table", type=Path, default=ROOT / "figures" / "optimise_lander.md")
     parser.add_argument("--figure", type=Path, default=ROOT / "figures" / "optimise_lander.png")
     parser.add_argument("--max-iter", type=int, default=None)
     args = parser.parse_args(argv)
@@ -89,15 +143,12 @@ def main(argv=None):
     result = study.solve(progress=True)
     result.save_json(args.out)
     print(result.message)
-    print(f"{'scenario':>10} {'peak before':>12} {'peak after':>11} {'max stroke':>11} "
-          f"{'max tilt':>9} {'final v_up':>10}")
-    for name, after in result.evaluation.scenarios.items():
-        before = result.initial.scenarios[name]
-        print(f"{name:>10} {before['peak_deceleration']:10.2f}   {after['peak_deceleration']:9.2f}"
-              f"   {after['max_stroke']:9.4f}  {np.degrees(after['max_tilt']):7.2f}°"
-              f"  {after['final_vertical_speed']:9.3f}")
+    text = table(result)
+    print(text)
+    args.table.parent.mkdir(parents=True, exist_ok=True)
+    args.table.write_text(text)
     plot(result, args.figure)
-    print(f"wrote {args.out} and {args.figure}")
+    print(f"wrote {args.out}, {args.table} and {args.figure}")
     return 0 if result.success else 1
 
 
