@@ -29,6 +29,15 @@ contact law is non-smooth, so the measured order is stated by the tests
 inside a step is located by linear interpolation of the distance; the force
 at the end of that step is exact for a plane, and the impulse over the step is
 integrated by the trapezoid rule, an O(h²) local error once per touchdown.
+
+Stability: the body update is explicit in velocity, so a stiff leg limits the
+step to ω_max Δt < 2, ω_max² the largest eigenvalue of M⁻¹K (M the body's
+6×6 mass matrix, K the stiffness of its pose against feet held fixed).
+:func:`stable_dt` estimates that limit from D_p by AD; ``simulate(...,
+adaptive=True, stability=True)`` caps every step at :data:`STABILITY_SAFETY`
+of it, or at a given fraction (opt-in, added for the stiff-leg hard case,
+docs/hard-cases.md; the default driver is unchanged). The paper's criterion
+1 − n_k·n_{k+1} < ε says nothing about this limit.
 """
 from __future__ import annotations
 
@@ -44,8 +53,8 @@ from .obstacles import closest_obstacle
 from .scene import Scene
 
 __all__ = ["StepModel", "Trajectory", "build_model", "simulate", "initial_state",
-           "equilibrium_state", "MODES", "STEP_CRITERION_EPS", "BODY_STATE", "LEG_STATE",
-           "BODY_OUT", "LEG_OUT"]
+           "equilibrium_state", "stable_dt", "MODES", "STEP_CRITERION_EPS", "STABILITY_SAFETY",
+           "BODY_STATE", "LEG_STATE", "BODY_OUT", "LEG_OUT"]
 
 #: Codes of the ``mode`` output of each leg.
 MODES = {0: "free", 1: "stick", 2: "slip", 3: "lift-off"}
@@ -56,6 +65,14 @@ STEP_CRITERION_EPS = 3e-5
 
 #: Deepest halving of Δt by the adaptive driver (Δt/2¹⁰ at most).
 MAX_HALVINGS = 10
+
+#: Fraction of the explicit stability limit 2/ω_max (:func:`stable_dt`) that
+#: ``simulate(adaptive=True, stability=True)`` allows per step: ω_max Δt ≤ 1,
+#: where velocity Verlet keeps the stiffest mode stable with a frequency error
+#: of 5 % (cos ω̃Δt = 1 − (ωΔt)²/2) instead of sitting on the edge of
+#: instability (ω Δt = 2). Stable is not accurate: an impact whose energy
+#: passes through that mode needs a smaller fraction (docs/hard-cases.md).
+STABILITY_SAFETY = 0.5
 
 # Layout of the state x and the per-step output y (public: the C API and the
 # optimiser index them). x = [body (BODY_STATE), leg 0 (LEG_STATE), leg 1, ...],
@@ -124,6 +141,7 @@ class StepModel:
     np: int
     param_names: tuple
     _rollouts: dict = field(default_factory=dict)
+    _body_stiffness: ca.Function | None = None
 
     def rollout(self, steps: int) -> ca.Function:
         """``touchdown_rollout(x0, p, dt) -> (X, Y)``: ``steps`` steps by mapaccum.
@@ -384,6 +402,69 @@ def equilibrium_state(scene: Scene, acceleration=(0.0, 0.0, 0.0), p=None,
     return np.concatenate([np.ravel(s) for s in state])
 
 
+def _body_stiffness(model: StepModel) -> ca.Function:
+    """``body_stiffness(x, p) -> K``: 6×6 stiffness of the body pose (world frame).
+
+    K = −∂(ΣF_j, Στ_j)/∂(Δx, Δθ) at Δ = 0: the legs' force and moment on the
+    body when it is displaced by Δx and turned by the small world rotation Δθ
+    with every foot held where it is — a foot in contact at its stored point,
+    a free foot at its unloaded position (as if it touched down there now, so
+    that the estimate also covers the next touchdown). D_p enters by AD.
+    """
+    if model._body_stiffness is None:
+        scene = model.scene
+        _, offsets = _leg_params(scene)
+        X = ca.SX.sym("x", model.nx)
+        p = ca.SX.sym("p", model.np)
+        z = ca.SX.sym("z", 6)
+        pos, R = X[0:3], quat_to_rot(X[6:10])
+        R_z = quat_to_rot(quat_exp(z[3:6])) @ R
+        pos_z = pos + z[0:3]
+        wrench = ca.SX.zeros(6)
+        for j, leg in enumerate(scene.legs):
+            foot = X[BODY_STATE + LEG_STATE * j: BODY_STATE + LEG_STATE * (j + 1)]
+            held = ca.if_else(foot[3] > 0.5, foot[0:3], pos + R @ ca.DM(leg.rest_foot))
+            rho = R_z.T @ (held - pos_z)
+            P = leg.functions()["strut_force"](rho, ca.DM.zeros(3),
+                                               p[offsets[j][0]:offsets[j][1]])
+            wrench = wrench + ca.vertcat(R_z @ P, R_z @ ca.cross(rho, P))
+        K = ca.substitute(-ca.jacobian(wrench, z), z, ca.DM.zeros(6))
+        model._body_stiffness = ca.Function("body_stiffness", [X, p], [K], ["x", "p"], ["K"])
+    return model._body_stiffness
+
+
+def stable_dt(model: StepModel, x, p=None) -> float:
+    """Explicit stability limit 2/ω_max of the body update at state ``x`` (s).
+
+    ω_max² is the largest |eigenvalue| of M⁻¹K, with M = diag(m I, R I_b Rᵀ)
+    the body's mass matrix and K its pose stiffness against feet held fixed
+    (:func:`_body_stiffness`). Velocity Verlet on ẍ = −ω²x is stable for
+    ω Δt < 2; a sliding foot is softer than a held one, so the estimate is
+    conservative in slip. Returns ``inf`` when no leg resists (K = 0).
+
+    Parameters
+    ----------
+    model : StepModel
+    x : array_like, shape (nx,)
+    p : array_like, optional
+        Leg parameters; default the scene's values.
+    """
+    x = np.asarray(x, dtype=float).ravel()
+    if x.shape != (model.nx,):
+        raise ValueError(f"`x` must have shape ({model.nx},), got {x.shape}.")
+    p = _default_p(model.scene) if p is None else np.asarray(p, dtype=float)
+    K = np.asarray(_body_stiffness(model)(x, p), dtype=float)
+    R = _rot_np(x[6:10] / np.linalg.norm(x[6:10]))
+    body = model.scene.body
+    M_inv = np.zeros((6, 6))
+    M_inv[:3, :3] = np.eye(3) / body.mass
+    M_inv[3:, 3:] = R @ np.linalg.inv(body.inertia) @ R.T
+    omega2 = float(np.max(np.abs(np.linalg.eigvals(M_inv @ K))))
+    if not np.isfinite(omega2):
+        raise FloatingPointError(f"the body stiffness at this state is not finite: {K!r}.")
+    return np.inf if omega2 == 0 else 2.0 / np.sqrt(omega2)
+
+
 # ---------------------------------------------------------------------------
 # trajectories
 # ---------------------------------------------------------------------------
@@ -507,7 +588,7 @@ def trajectory_from(model: StepModel, x0, X, Y, t) -> Trajectory:
 
 def simulate(scene: Scene, *, model: StepModel | None = None, x0=None, p=None,
              adaptive: bool = False, eps: float = STEP_CRITERION_EPS,
-             progress: bool = False) -> Trajectory:
+             stability: bool | float = False, progress: bool = False) -> Trajectory:
     """Simulate a scene.
 
     Parameters
@@ -525,6 +606,15 @@ def simulate(scene: Scene, *, model: StepModel | None = None, x0=None, p=None,
         True: a Python loop that applies the paper's criterion
         1 − n_k·n_{k+1} < ``eps`` (§3) by halving Δt for a step (up to
         :data:`MAX_HALVINGS` times) where a contact normal turns too fast.
+    stability : bool or float
+        Adaptive runs only: also cap each step at :data:`STABILITY_SAFETY`
+        (``True``) or the given fraction in (0, 1] × :func:`stable_dt` of its
+        start state (stiff legs, e.g. rigid rods with a large ``axial_ratio``;
+        a fraction well below 1 also resolves the stiff mode, whose energy
+        error is O((ω_max Δt)²) of the energy it carries). ``info`` then has
+        ``stability_capped`` (steps shortened by the cap); every adaptive run
+        reports ``dt_min``, the smallest step taken (the final step, cut to
+        end at ``duration``, aside).
     progress : bool
         Print a progress line (adaptive runs).
     """
@@ -535,6 +625,15 @@ def simulate(scene: Scene, *, model: StepModel | None = None, x0=None, p=None,
     p = _default_p(scene) if p is None else np.asarray(p, dtype=float)
     if p.shape != (model.np,):
         raise ValueError(f"`p` must have {model.np} entries {model.param_names}, got {p.shape}.")
+    if stability is True or stability is False:
+        stability = STABILITY_SAFETY if stability else 0.0
+    if isinstance(stability, (bool, np.bool_)) or not isinstance(stability, (int, float)) \
+            or not 0 <= stability <= 1:
+        raise ValueError(f"`stability` must be True, False or a fraction in (0, 1], "
+                         f"got {stability!r}.")
+    if stability and not adaptive:
+        raise ValueError("`stability` needs `adaptive=True` (a fixed-step run uses "
+                         "scene.dt; choose it below stable_dt(model, x0) instead).")
     started = time.perf_counter()
     if not adaptive:
         steps = scene.steps
@@ -544,7 +643,7 @@ def simulate(scene: Scene, *, model: StepModel | None = None, x0=None, p=None,
         traj.info = {"dt": scene.dt, "steps": steps, "halvings": 0,
                      "final_state": np.asarray(X, dtype=float)[:, -1]}
     else:
-        traj = _simulate_adaptive(model, x0, p, eps, progress)
+        traj = _simulate_adaptive(model, x0, p, eps, progress, stability)
     traj.info["criterion_max"] = float(np.nanmax(traj.criterion)) if traj.criterion.size else 0.0
     traj.info["wall_seconds"] = time.perf_counter() - started
     traj.info["method"] = scene.method
@@ -565,17 +664,22 @@ def _normals(model, y):
     return legs_y[:, 0] > 0.5, legs_y[:, 5:8]
 
 
-def _simulate_adaptive(model, x0, p, eps, progress):
+def _simulate_adaptive(model, x0, p, eps, progress, stability=0.0):
     scene = model.scene
     step = model.step
     t_end, dt = scene.duration, scene.dt
     t, x = 0.0, x0
     ts, xs, ys = [0.0], [], []
     last_contact, last_normal = None, None
-    halvings = 0
+    halvings = capped = 0
+    dt_min = np.inf
     next_report = time.perf_counter() + 1.0
     while t < t_end - 1e-12 * t_end:
         h = min(dt, t_end - t)
+        if stability:
+            h_stable = stability * stable_dt(model, x, p)
+            if h_stable < h:
+                h, capped = h_stable, capped + 1
         for depth in range(MAX_HALVINGS + 1):
             x_new, y = step(x, p, h)
             contact, normal = _normals(model, y)
@@ -588,6 +692,8 @@ def _simulate_adaptive(model, x0, p, eps, progress):
             h /= 2
             halvings += 1
         x = np.asarray(x_new, float).ravel()
+        if h < t_end - t - 1e-12 * t_end:       # not the final, shortened step
+            dt_min = min(dt_min, h)
         t += h
         ts.append(t)
         xs.append(x)
@@ -601,7 +707,9 @@ def _simulate_adaptive(model, x0, p, eps, progress):
         print()
     traj = trajectory_from(model, x0, np.column_stack(xs), np.column_stack(ys), np.array(ts))
     traj.info = {"dt": dt, "steps": len(ts) - 1, "halvings": halvings, "eps": eps,
-                 "final_state": x}
+                 "final_state": x, "dt_min": dt_min}
+    if stability:
+        traj.info["stability_capped"] = capped
     return traj
 
 
