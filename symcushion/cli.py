@@ -1,4 +1,4 @@
-"""Command line: ``symcushion reproduce | simulate | codegen | optimise``.
+"""Command line: ``symcushion reproduce | simulate | codegen | optimise | envelope``.
 
 Each sub-command is a thin layer over the public API; it parses arguments,
 reports progress and turns library errors into one-line messages.
@@ -77,6 +77,38 @@ def _cmd_optimise(args):
     return 0 if result.success and result.evaluation.feasible else 1
 
 
+def _cmd_envelope(args):
+    from .envelope import load_study, run_envelope
+
+    study = load_study(args.study)
+    changes = {k: v for k, v in (("n", args.n), ("seed", args.seed), ("batch", args.batch))
+               if v is not None}
+    if changes:
+        study = study.with_(**changes)
+    out = args.out if args.out is not None else Path("out") / study.name
+    backend = ("Dask at " + args.scheduler if args.scheduler else
+               f"a local Dask cluster of {args.workers} workers" if args.dask else
+               f"{args.threads or 'all'} thread(s)")
+    print(f"{study.name}: {study.n:,} cases ({study.method}, seed {study.seed}), "
+          f"{len(study.scene.legs)} legs, method {study.scene.method}, {study.scene.steps} "
+          f"steps of {study.scene.dt:g} s; {backend}", flush=True)
+    try:
+        result = run_envelope(study, out, threads=args.threads, dask=args.dask,
+                              scheduler=args.scheduler, workers=args.workers,
+                              cache_dir=args.build_dir, progress=True)
+    except RuntimeError as exc:  # a failed gcc command, with its output
+        print(f"symcushion envelope: error: {exc}", file=sys.stderr)
+        return 1
+    ps = result.p_stable()
+    counts = ", ".join(f"{k} {v}" for k, v in result.counts().items() if v)
+    print(f"P(stable) = {ps['p']:.3f} [{ps['low']:.3f}, {ps['high']:.3f}] "
+          f"({ps['confidence']:.0%} Wilson); {counts}")
+    print(f"{result.timings['cases_per_second']:,.0f} cases/s "
+          f"({result.timings['run_seconds']:.1f} s); wrote "
+          + ", ".join(str(f) for f in result.files.values()))
+    return 0
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="symcushion", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -114,6 +146,27 @@ def main(argv=None) -> int:
                    help="result JSON (default: out/<study name>.json)")
     p.add_argument("--max-iter", type=int, default=None, help="override Ipopt's max_iter")
     p.set_defaults(func=_cmd_optimise)
+
+    p = sub.add_parser("envelope", help="Monte Carlo touchdown stability envelope of a study "
+                                        "TOML file (docs/envelope.md)")
+    p.add_argument("study", type=Path)
+    p.add_argument("--out", type=Path, default=None,
+                   help="output folder: cases.csv, summary.json, figures "
+                        "(default: out/<study name>)")
+    p.add_argument("--n", type=int, default=None, help="override sampling.n")
+    p.add_argument("--seed", type=int, default=None, help="override sampling.seed")
+    p.add_argument("--batch", type=int, default=None, help="cases per batch / Dask task")
+    p.add_argument("--threads", type=int, default=None,
+                   help="threads of the local run (default: every core)")
+    p.add_argument("--dask", action="store_true",
+                   help="run batches as Dask tasks (a local cluster unless --scheduler)")
+    p.add_argument("--scheduler", default=None,
+                   help="address of a Dask scheduler, e.g. tcp://host:8786 (implies --dask)")
+    p.add_argument("--workers", type=int, default=2,
+                   help="workers of the local Dask cluster (default: 2)")
+    p.add_argument("--build-dir", type=Path, default=None,
+                   help="cache of compiled Functions (default: build/envelope)")
+    p.set_defaults(func=_cmd_envelope)
 
     args = parser.parse_args(argv)
     try:

@@ -1,0 +1,368 @@
+"""Benchmark of the envelope study: cases per second, and accuracy against Δt.
+
+Throughput: the example study (studies/envelope_lander.toml: four legs, 2 s
+at Δt = 2 ms, method 'robust', 1000 steps per case) on one thread, on every
+core (``map(batch, "thread", cores)``) and on a local Dask cluster of two
+single-threaded worker processes; the time for 10,000 cases is extrapolated
+from each measured rate (or, with ``--full``, measured on every core).
+
+Accuracy (``--accuracy``): the same cases at Δt = 2 ms and 1 ms against
+0.5 ms — how often the class changes and how much the measures move.
+
+Contact method (``--methods``): the same cases (the study's seed) with the
+study's 'robust' step (tangent plane at the start, 2 ms), 'robust' with the
+tangent plane at the end, and 'implicit' at 2 ms and 1 ms, against the
+reference 'implicit' at 0.5 ms — classes that change, the confusion between
+classes, P(stable) with its Wilson interval and a paired (McNemar) test of
+the change, and the CPU per case of each variant; plus the marginal case of
+issue 9 in every variant.
+
+Each writes its section of docs/envelope.md (``symcushion.report``).
+
+    python studies/bench_envelope.py [--n 1000] [--full] [--accuracy] [--methods]
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import platform
+import resource
+import time
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+from symcushion import report
+from symcushion.envelope import CLASSES, CONFIDENCE, build_envelope, classify, evaluate, \
+    initial_states, load_study, run_batch, run_envelope, sample_conditions, wilson_interval
+
+ROOT = Path(__file__).resolve().parent.parent
+STUDY = ROOT / "studies" / "envelope_lander.toml"
+DOCS = ROOT / "docs" / "envelope.md"
+CACHE = ROOT / "build" / "envelope"
+#: The issue's target: 10,000 two-second touchdowns.
+TARGET_CASES = 10_000
+#: Cases of the accuracy comparison and the Δt of the reference.
+ACCURACY_CASES = 400
+REFERENCE_DT = 5e-4
+#: Variants of the contact-method comparison, (method, tangent_plane, Δt): the
+#: study's own first, the reference last. 'robust' at 0.5 ms separates the
+#: method's effect from the step's.
+METHOD_VARIANTS = (("robust", "start", 2e-3), ("robust", "end", 2e-3),
+                   ("implicit", "end", 2e-3), ("implicit", "end", 1e-3),
+                   ("robust", "start", 5e-4), ("implicit", "end", 5e-4))
+#: The marginal case of issue 9 (case 2462 of the study's 10,000, seed 2024):
+#: 1.06 m/s down, 0.14 m/s nearly uphill, 13.8° slope; 'robust' settles,
+#: 'implicit' tips over.
+MARGINAL_CASE = 2462
+#: Heading of the section --methods writes in docs/envelope.md.
+METHODS_HEADING = "Sensitivity to the contact method and Δt"
+
+
+def cpu_name() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown CPU"
+
+
+def _cpu() -> float:
+    """CPU seconds of this process and its finished children (the Dask workers)."""
+    own = resource.getrusage(resource.RUSAGE_SELF)
+    kids = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+
+
+def measure(study, label: str, **kwargs) -> dict:
+    """Run the study once: wall-clock rate, CPU per case, cores actually obtained."""
+    load = os.getloadavg()[0]
+    cpu, wall = _cpu(), time.perf_counter()
+    result = run_envelope(study, None, cache_dir=CACHE, progress=True, plots=False, **kwargs)
+    cpu, wall = _cpu() - cpu, time.perf_counter() - wall
+    t = result.timings
+    row = {"how": label, "cases": study.n, "seconds": t["run_seconds"],
+           "rate": study.n / t["run_seconds"], "cpu_per_case_ms": 1e3 * cpu / study.n,
+           "cores": cpu / wall, "startup": t.get("startup_seconds"), "load": load,
+           "counts": result.counts()}
+    print(f"{label}: {row['rate']:.0f} cases/s ({row['seconds']:.1f} s for {study.n} cases, "
+          f"load average {load:.1f})", flush=True)
+    return row
+
+
+def throughput(n: int, full: bool) -> str:
+    study = load_study(STUDY).with_(n=n)
+    cores = os.cpu_count() or 1
+    build_envelope(study.scene, CACHE, progress=True)
+    rows = [measure(study, "one thread", threads=1),
+            measure(study, f"all cores: map(batch, \"thread\", {cores})", threads=cores),
+            measure(study, "local Dask cluster, 2 workers × 1 thread", dask=True, workers=2)]
+    if full:
+        rows.append(measure(study.with_(n=TARGET_CASES), f"all cores, {TARGET_CASES:,} cases "
+                                                         "(measured)", threads=cores))
+    same = all(r["counts"] == rows[0]["counts"] for r in rows[:3])
+    lines = ["| how | cases | s | cases/s | 10,000 cases (s) | CPU ms/case | cores obtained | "
+             "load avg. at start |", "|---|---:|---:|---:|---:|---:|---:|---:|"]
+    for r in rows:
+        ten = r["seconds"] if r["cases"] == TARGET_CASES else TARGET_CASES / r["rate"]
+        kind = "measured" if r["cases"] == TARGET_CASES else "extrapolated"
+        lines.append(f"| {r['how']} | {r['cases']:,} | {r['seconds']:.1f} | {r['rate']:.0f} | "
+                     f"{ten:.0f} ({kind}) | {r['cpu_per_case_ms']:.2f} | {r['cores']:.2f} | "
+                     f"{r['load']:.1f} |")
+    dask = rows[2]
+    steps = study.scene.steps
+    one = rows[0]
+    text = (
+        f"Produced by `python studies/bench_envelope.py --n {n}{' --full' if full else ''}` "
+        f"on {cpu_name()} ({cores} cores), {platform.system()} {platform.machine()}, CasADi "
+        f"{ca.__version__}, CPython {platform.python_version()}. Study "
+        f"`studies/envelope_lander.toml`: 4 legs, method '{study.scene.method}', μ = "
+        f"{study.scene.mu:g}, {steps} steps of {study.scene.dt * 1e3:g} ms per case, batches "
+        f"of {study.batch}. Times are wall clock of the runs alone (sampling, initial states "
+        "and classification included; compile and the Dask cluster's start excluded: the "
+        f"cluster took {dask['startup']:.1f} s to start). CPU is that of this process and "
+        "its worker processes over the whole call; \"cores obtained\" is CPU over wall "
+        "time. The machine is shared with other jobs (load average in the table; above 2 "
+        "both cores were busy before the run started), so the wall-clock rates say as much "
+        "about the other jobs as about this code.\n\n" + "\n".join(lines) + "\n\n"
+        f"One thread spends {one['cpu_per_case_ms'] / steps * 1e3:.1f} µs of CPU per step "
+        f"({one['cpu_per_case_ms']:.2f} ms per 2-s case). In this run every core gave "
+        f"{rows[1]['rate'] / one['rate']:.2f}× the one-thread rate and the local Dask cluster "
+        f"{dask['rate'] / one['rate']:.2f}×, with {rows[1]['cores']:.2f} and "
+        f"{dask['cores']:.2f} cores obtained against {one['cores']:.2f}. At the measured CPU "
+        f"per case, {cores} free cores would run 10,000 cases in about "
+        f"{TARGET_CASES * one['cpu_per_case_ms'] / 1e3 / cores:.0f} s (a projection, not a "
+        "measurement). All runs classify the cases identically: "
+        f"{'yes' if same else 'NO'} (the tests compare the CSV bytes)."
+    )
+    return text
+
+
+def accuracy() -> str:
+    base = load_study(STUDY).with_(n=ACCURACY_CASES, seed=11)
+    cond = sample_conditions(base)
+    results = {}
+    for dt in (2e-3, 1e-3, REFERENCE_DT):
+        study = base.with_(scene=base.scene.with_(dt=dt))
+        started = time.perf_counter()
+        results[dt] = evaluate(study, cond, threads=os.cpu_count() or 1, cache_dir=CACHE,
+                               progress=True)
+        print(f"dt = {dt:g}: {time.perf_counter() - started:.1f} s", flush=True)
+    ref = results[REFERENCE_DT]
+    lines = [f"| Δt | P(stable), {CONFIDENCE:.0%} Wilson | same class as at "
+             f"{REFERENCE_DT * 1e3:g} ms | same class as at 1 ms | peak deceleration (m/s²) | "
+             "max stroke (mm) | max tilt (deg) |", "|---|---|---:|---:|---:|---:|---:|"]
+    upright = ref["max_tilt_deg"] < 60           # tumbling cases diverge chaotically
+    for dt in (2e-3, 1e-3, REFERENCE_DT):
+        r = results[dt]
+        est, lo, hi = wilson_interval(np.sum(r["stable"]), len(r["stable"]))
+        cells = [f"{est:.3f} [{lo:.3f}, {hi:.3f}]"]
+        cells += [f"{np.mean(r['class'] == other['class']):.1%}" if other is not r else "—"
+                  for other in (ref, results[1e-3])]
+        for key, scale in (("peak_decel", 1.0), ("max_stroke", 1e3), ("max_tilt_deg", 1.0)):
+            d = np.abs(r[key] - ref[key])[upright] * scale
+            cells.append(f"{np.median(d):.3g} / {np.percentile(d, 95):.3g}"
+                         if r is not ref else "—")
+        lines.append(f"| {dt * 1e3:g} ms | " + " | ".join(cells) + " |")
+    text = (
+        f"Produced by `python studies/bench_envelope.py --accuracy`: {ACCURACY_CASES} cases "
+        "of the example study (seed 11) run at Δt = 2 ms, 1 ms and the reference "
+        f"{REFERENCE_DT * 1e3:g} ms. The last three columns are the median / 95th "
+        f"percentile of the absolute difference from {REFERENCE_DT * 1e3:g} ms, over the "
+        f"{int(np.sum(upright))} cases whose reference tilt stays below 60° (a lander "
+        "that tumbles has no meaningful pointwise reference).\n\n" + "\n".join(lines))
+    return text
+
+
+def _variant_label(variant) -> str:
+    method, plane, dt = variant
+    return f"{method}/{plane}/{dt * 1e3:g} ms"
+
+
+def _mcnemar(b: int, c: int) -> float:
+    """Two-sided exact McNemar p-value of b against c discordant pairs (binomial, ½)."""
+    n = b + c
+    if n == 0:
+        return 1.0
+    tail = sum(math.comb(n, k) for k in range(min(b, c) + 1)) / 2.0 ** n
+    return min(1.0, 2 * tail)
+
+
+def _run_variant(base, variant, cases: dict, marginal: dict, threads: int) -> tuple:
+    """Compile (or load) one variant; run the cases (timed: CPU of the run alone) and the
+    marginal case; return both classifications."""
+    method, plane, dt = variant
+    study = base.with_(scene=base.scene.with_(method=method, tangent_plane=plane, dt=dt))
+    started = time.perf_counter()
+    library = build_envelope(study.scene, CACHE, progress=True)
+    build = time.perf_counter() - started
+    p = np.concatenate([leg.param_values for leg in study.scene.legs])
+    out = []
+    for k, conditions in enumerate((cases, marginal)):
+        x0, gravity = initial_states(study, conditions)
+        load = os.getloadavg()[0]
+        cpu, wall = _cpu(), time.perf_counter()
+        x_end, summary = run_batch(library, x0, gravity, p, dt, threads if k == 0 else 1)
+        cpu, wall = _cpu() - cpu, time.perf_counter() - wall
+        r = classify(summary, x_end, gravity, x0, study.limits, len(study.scene.legs))
+        r.update(cpu_per_case=cpu / x0.shape[1], wall=wall, load=load)
+        out.append(r)
+    n = len(cases["vertical_speed"])
+    print(f"{_variant_label(variant)}: {out[0]['wall']:.1f} s for {n} cases, "
+          f"{1e3 * out[0]['cpu_per_case']:.2f} ms CPU per case (library ready after "
+          f"{build:.1f} s, load average {out[0]['load']:.1f})", flush=True)
+    return out[0], out[1]
+
+
+def methods(threads: int) -> str:
+    """Classes and P(stable) of the study's cases under each of :data:`METHOD_VARIANTS`."""
+    base = load_study(STUDY)
+    # a Sobol sequence's first points do not depend on n: the study's own first cases
+    every = sample_conditions(base.with_(n=max(ACCURACY_CASES, MARGINAL_CASE + 1)))
+    cond = {k: v[:ACCURACY_CASES] for k, v in every.items()}
+    marginal = {k: v[MARGINAL_CASE:MARGINAL_CASE + 1] for k, v in every.items()}
+    started = time.perf_counter()
+    results, single = {}, {}
+    for variant in METHOD_VARIANTS:
+        results[variant], single[variant] = _run_variant(base, variant, cond, marginal,
+                                                         threads)
+    total = time.perf_counter() - started
+    default, reference = METHOD_VARIANTS[0], METHOD_VARIANTS[-1]
+    ref = results[reference]
+    n = ACCURACY_CASES
+    ref_est, ref_lo, ref_hi = wilson_interval(np.sum(ref["stable"]), n)
+    default_cpu = results[default]["cpu_per_case"]
+
+    def short(name):
+        return {"tip_over": "tip", "stable": "stab", "stroke": "strk", "rebound": "reb",
+                "deflection": "defl", "deceleration": "decel",
+                "no_touchdown": "none"}.get(name, name)
+
+    lines = [f"| variant (method/tangent plane/Δt) | P(stable), {CONFIDENCE:.0%} Wilson | "
+             "ΔP vs reference | McNemar p | class ≠ reference | changes (variant → reference) "
+             "| CPU ms/case | × default |", "|---|---|---:|---:|---:|---|---:|---:|"]
+    rows = {}
+    for variant in METHOD_VARIANTS:
+        r = results[variant]
+        k = int(np.sum(r["stable"]))
+        est, lo, hi = wilson_interval(k, n)
+        gained = int(np.sum(r["stable"] & ~ref["stable"]))     # stable here, not in the reference
+        lost = int(np.sum(~r["stable"] & ref["stable"]))
+        differ = r["class"] != ref["class"]
+        pairs = {}
+        for a, b in zip(r["class"][differ], ref["class"][differ]):
+            pairs[(a, b)] = pairs.get((a, b), 0) + 1
+        order = sorted(pairs, key=lambda ab: (-pairs[ab], CLASSES.index(ab[0]),
+                                              CLASSES.index(ab[1])))
+        change = ", ".join(f"{short(a)}→{short(b)} {pairs[(a, b)]}" for a, b in order)
+        rows[variant] = dict(est=est, lo=lo, hi=hi, gained=gained, lost=lost,
+                             differ=float(np.mean(differ)), p=_mcnemar(gained, lost))
+        is_ref = variant == reference
+        lines.append(
+            f"| {_variant_label(variant)}{' (study)' if variant == default else ''}"
+            f"{' (reference)' if is_ref else ''} | {est:.3f} [{lo:.3f}, {hi:.3f}] | "
+            + ("— | — | — | — |" if is_ref else
+               f"{est - ref_est:+.3f} | {rows[variant]['p']:.2g} | {np.mean(differ):.1%} "
+               f"({int(np.sum(differ))}) | {change or 'none'} |")
+            + f" {1e3 * r['cpu_per_case']:.1f} | {r['cpu_per_case'] / default_cpu:.1f} |")
+
+    # the class confusion of the study's variant against the reference, in full
+    present = [c for c in CLASSES if np.any(results[default]["class"] == c)
+               or np.any(ref["class"] == c)]
+    conf = ["| study's variant ↓ / reference → | " + " | ".join(present) + " |",
+            "|---|" + "---:|" * len(present)]
+    for a in present:
+        cells = [int(np.sum((results[default]["class"] == a) & (ref["class"] == b)))
+                 for b in present]
+        conf.append(f"| {a} | " + " | ".join(str(c) for c in cells) + " |")
+
+    # pairwise agreement between variants that share a method or a Δt
+    def agree(u, v):
+        return float(np.mean(results[u]["class"] == results[v]["class"]))
+    rs, rf = ("robust", "start", 2e-3), ("robust", "start", 5e-4)
+    i2, i1 = ("implicit", "end", 2e-3), ("implicit", "end", 1e-3)
+    re2 = ("robust", "end", 2e-3)
+
+    marg = ["| variant | class | max tilt (deg) | final tilt (deg) | slide (m) | feet down |",
+            "|---|---|---:|---:|---:|---:|"]
+    for variant in METHOD_VARIANTS:
+        m = single[variant]
+        marg.append(f"| {_variant_label(variant)} | {m['class'][0]} | "
+                    f"{m['max_tilt_deg'][0]:.1f} | {m['final_tilt_deg'][0]:.1f} | "
+                    f"{m['slide'][0]:.2f} | {int(m['feet_down'][0])} |")
+
+    d = rows[default]
+    outside = not (ref_lo <= d["est"] <= ref_hi)
+    slope = cond["slope_deg"]
+    steep = slope >= 10.0
+    differ_default = results[default]["class"] != ref["class"]
+    verdict = (
+        f"**The study's default (robust/start/2 ms) {'DISAGREES' if outside else 'agrees'} "
+        f"with the reference in P(stable) {'beyond' if outside else 'within'} the reference's "
+        f"{CONFIDENCE:.0%} Wilson interval**: {d['est']:.3f} against {ref_est:.3f} "
+        f"[{ref_lo:.3f}, {ref_hi:.3f}]; paired over the same cases, {d['gained']} cases are "
+        f"stable only in the default and {d['lost']} only in the reference (McNemar "
+        f"p = {d['p']:.2g}).")
+    cores = os.cpu_count() or 1
+    text = (
+        f"Produced by `python studies/bench_envelope.py --methods` on {cpu_name()} ({cores} "
+        f"cores, shared with other jobs), CasADi {ca.__version__}: the first {n} cases of the "
+        f"example study (its seed, {base.seed}) run with each contact method, tangent-plane "
+        f"reading and Δt, against the reference 'implicit', tangent plane at the end, "
+        f"Δt = {reference[2] * 1e3:g} ms. Each variant is one compiled `envelope_case`, run "
+        f"as one `map({n}, 'thread', {threads})`; CPU is that of the run alone (compile "
+        "excluded), per 2-s case, and its ratio to the study's variant, measured in one run "
+        f"on a shared machine. “ΔP” is P(stable) minus the reference's; “McNemar p” tests "
+        "the paired change (cases stable in one variant and not the other), far more "
+        "sensitive than comparing the two intervals. Changes are counted as “class here → "
+        "class in the reference” (stab = stable, tip = tip_over, strk = stroke, reb = "
+        f"rebound). Whole mode: {total / 60:.1f} min including compiles.\n\n"
+        + verdict + "\n\n" + "\n".join(lines) + "\n\n"
+        "Classes of the study's variant against the reference, all cases:\n\n"
+        + "\n".join(conf) + "\n\n"
+        f"Other agreements of class: robust/start 2 ms vs 0.5 ms {agree(rs, rf):.1%}; "
+        f"implicit 2 ms vs 1 ms {agree(i2, i1):.1%}; implicit 1 ms vs 0.5 ms "
+        f"{agree(i1, reference):.1%}; robust/start vs robust/end at 2 ms {agree(rs, re2):.1%}; "
+        f"robust vs implicit at 0.5 ms {agree(rf, reference):.1%}. Of the "
+        f"{int(np.sum(differ_default))} cases whose class differs between the study's variant "
+        f"and the reference, {int(np.sum(differ_default & steep))} are on slopes of 10° or "
+        f"more ({np.mean(steep):.0%} of all cases are).\n\n"
+        f"The marginal case of issue 9 (case {MARGINAL_CASE} of the study: "
+        + ", ".join(f"{k} {marginal[k][0]:.4g}" for k in ("vertical_speed", "horizontal_speed",
+                                                        "heading_deg", "slope_deg", "yaw_deg",
+                                                        "tilt_deg", "tilt_azimuth_deg", "mu"))
+        + "):\n\n" + "\n".join(marg))
+    return text
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--n", type=int, default=1000, help="cases per measurement")
+    parser.add_argument("--full", action="store_true",
+                        help=f"also run {TARGET_CASES:,} cases on every core")
+    parser.add_argument("--accuracy", action="store_true",
+                        help="compare Δt = 2 ms and 1 ms with 0.5 ms instead")
+    parser.add_argument("--methods", action="store_true",
+                        help="compare contact methods, tangent planes and Δt with "
+                             "'implicit' at 0.5 ms instead")
+    parser.add_argument("--threads", type=int, default=os.cpu_count() or 1,
+                        help="threads of --methods (default every core)")
+    args = parser.parse_args(argv)
+    if args.methods:
+        report.write_section(DOCS, METHODS_HEADING, methods(args.threads),
+                             title="# Touchdown stability envelope")
+    elif args.accuracy:
+        report.write_section(DOCS, "Accuracy against Δt", accuracy(),
+                             title="# Touchdown stability envelope")
+    else:
+        report.write_section(DOCS, "Benchmark", throughput(args.n, args.full),
+                             title="# Touchdown stability envelope")
+    print(f"wrote {DOCS}")
+
+
+if __name__ == "__main__":
+    main()
