@@ -149,8 +149,9 @@ def friction_lag_after_turn(method):
     second = simulate(scene.with_(duration=0.03), x0=x1)
     force = second.force[1:, 0, :2]
     slip = np.diff(second.foot[:, 0, :2], axis=0)
-    cos = -np.einsum("ti,ti->t", force, slip) / (
-        np.linalg.norm(force, axis=1) * np.linalg.norm(slip, axis=1))
+    with np.errstate(invalid="ignore"):   # a step without slip has no direction: NaN
+        cos = -np.einsum("ti,ti->t", force, slip) / (
+            np.linalg.norm(force, axis=1) * np.linalg.norm(slip, axis=1))
     return np.degrees(np.arccos(np.clip(cos, -1, 1)))
 
 
