@@ -1,4 +1,4 @@
-"""Benchmark of the envelope study: cases per second, and accuracy against Δt.
+"""Benchmark of the envelope study: cases per second, accuracy against Δt and the contact method.
 
 Throughput: the example study (studies/envelope_lander.toml: four legs, 2 s
 at Δt = 2 ms, method 'robust', 1000 steps per case) on one thread, on every
@@ -11,11 +11,11 @@ Accuracy (``--accuracy``): the same cases at Δt = 2 ms and 1 ms against
 
 Contact method (``--methods``): the same cases (the study's seed) with the
 study's 'robust' step (tangent plane at the start, 2 ms), 'robust' with the
-tangent plane at the end, and 'implicit' at 2 ms and 1 ms, against the
-reference 'implicit' at 0.5 ms — classes that change, the confusion between
-classes, P(stable) with its Wilson interval and a paired (McNemar) test of
-the change, and the CPU per case of each variant; plus the marginal case of
-issue 9 in every variant.
+tangent plane at the end, 'implicit' at 2 ms and 1 ms, and both methods at
+0.25 ms as a check, against the reference 'implicit' at 0.5 ms — classes
+that change, the confusion between classes, P(stable) with its Wilson
+interval and a paired (McNemar) test of the change, and the CPU per case of
+each variant; plus the marginal case of issue 9 in every variant.
 
 Each writes its section of docs/envelope.md (``symcushion.report``).
 
@@ -48,15 +48,21 @@ TARGET_CASES = 10_000
 ACCURACY_CASES = 400
 REFERENCE_DT = 5e-4
 #: Variants of the contact-method comparison, (method, tangent_plane, Δt): the
-#: study's own first, the reference last. 'robust' at 0.5 ms separates the
-#: method's effect from the step's.
+#: study's own first. 'robust' at 0.5 ms separates the method's effect from
+#: the step's; the two 0.25-ms runs check the reference and whether 'robust'
+#: approaches it.
 METHOD_VARIANTS = (("robust", "start", 2e-3), ("robust", "end", 2e-3),
                    ("implicit", "end", 2e-3), ("implicit", "end", 1e-3),
-                   ("robust", "start", 5e-4), ("implicit", "end", 5e-4))
+                   ("robust", "start", 5e-4), ("robust", "start", 2.5e-4),
+                   ("implicit", "end", 5e-4), ("implicit", "end", 2.5e-4))
+#: The reference of the comparison: the exact backward-Euler Coulomb step.
+METHOD_REFERENCE = ("implicit", "end", 5e-4)
 #: The marginal case of issue 9 (case 2462 of the study's 10,000, seed 2024):
 #: 1.06 m/s down, 0.14 m/s nearly uphill, 13.8° slope; 'robust' settles,
 #: 'implicit' tips over.
 MARGINAL_CASE = 2462
+#: A "stable" case faster than this at the end (m/s) has not come to rest.
+MOVING_SPEED = 0.05
 #: Heading of the section --methods writes in docs/envelope.md.
 METHODS_HEADING = "Sensitivity to the contact method and Δt"
 
@@ -209,7 +215,7 @@ def _run_variant(base, variant, cases: dict, marginal: dict, threads: int) -> tu
         x_end, summary = run_batch(library, x0, gravity, p, dt, threads if k == 0 else 1)
         cpu, wall = _cpu() - cpu, time.perf_counter() - wall
         r = classify(summary, x_end, gravity, x0, study.limits, len(study.scene.legs))
-        r.update(cpu_per_case=cpu / x0.shape[1], wall=wall, load=load)
+        r.update(cpu_per_case=cpu / x0.shape[1], wall=wall, load=load, build=build)
         out.append(r)
     n = len(cases["vertical_speed"])
     print(f"{_variant_label(variant)}: {out[0]['wall']:.1f} s for {n} cases, "
@@ -231,7 +237,8 @@ def methods(threads: int) -> str:
         results[variant], single[variant] = _run_variant(base, variant, cond, marginal,
                                                          threads)
     total = time.perf_counter() - started
-    default, reference = METHOD_VARIANTS[0], METHOD_VARIANTS[-1]
+    building = sum(r["build"] for r in results.values())
+    default, reference = METHOD_VARIANTS[0], METHOD_REFERENCE
     ref = results[reference]
     n = ACCURACY_CASES
     ref_est, ref_lo, ref_hi = wilson_interval(np.sum(ref["stable"]), n)
@@ -264,7 +271,9 @@ def methods(threads: int) -> str:
         is_ref = variant == reference
         lines.append(
             f"| {_variant_label(variant)}{' (study)' if variant == default else ''}"
-            f"{' (reference)' if is_ref else ''} | {est:.3f} [{lo:.3f}, {hi:.3f}] | "
+            f"{' (reference)' if is_ref else ''}"
+            f"{' (check)' if variant[2] < reference[2] else ''} | "
+            f"{est:.3f} [{lo:.3f}, {hi:.3f}] | "
             + ("— | — | — | — |" if is_ref else
                f"{est - ref_est:+.3f} | {rows[variant]['p']:.2g} | {np.mean(differ):.1%} "
                f"({int(np.sum(differ))}) | {change or 'none'} |")
@@ -280,57 +289,132 @@ def methods(threads: int) -> str:
                  for b in present]
         conf.append(f"| {a} | " + " | ".join(str(c) for c in cells) + " |")
 
-    # pairwise agreement between variants that share a method or a Δt
     def agree(u, v):
         return float(np.mean(results[u]["class"] == results[v]["class"]))
-    rs, rf = ("robust", "start", 2e-3), ("robust", "start", 5e-4)
-    i2, i1 = ("implicit", "end", 2e-3), ("implicit", "end", 1e-3)
-    re2 = ("robust", "end", 2e-3)
 
-    marg = ["| variant | class | max tilt (deg) | final tilt (deg) | slide (m) | feet down |",
-            "|---|---|---:|---:|---:|---:|"]
+    # P(stable) per slope third: where the methods part
+    slope = cond["slope_deg"]
+    edges = np.linspace(0.0, float(base.ranges["slope_deg"].bounds()[1]), 4)
+    shown = [default, ("implicit", "end", 1e-3), reference]
+    by_slope = ["| slope | cases | " + " | ".join(_variant_label(v) for v in shown) + " |",
+                "|---|---:|" + "---|" * len(shown)]
+    third_p = []
+    for lo_edge, hi_edge in zip(edges[:-1], edges[1:]):
+        inside = (slope >= lo_edge) & (slope < hi_edge) if hi_edge < edges[-1] else \
+            (slope >= lo_edge)
+        cells = []
+        for v in shown:
+            est, lo, hi = wilson_interval(np.sum(results[v]["stable"][inside]), np.sum(inside))
+            cells.append(f"{est:.3f} [{lo:.3f}, {hi:.3f}]")
+        third_p.append([float(np.mean(results[v]["stable"][inside])) for v in shown])
+        by_slope.append(f"| {lo_edge:g}–{hi_edge:g}° | {int(np.sum(inside))} | "
+                        + " | ".join(cells) + " |")
+
+    marg = ["| variant | class | max tilt (deg) | final tilt (deg) | final speed (m/s) | "
+            "slide (m) | feet down |", "|---|---|---:|---:|---:|---:|---:|"]
     for variant in METHOD_VARIANTS:
         m = single[variant]
         marg.append(f"| {_variant_label(variant)} | {m['class'][0]} | "
                     f"{m['max_tilt_deg'][0]:.1f} | {m['final_tilt_deg'][0]:.1f} | "
-                    f"{m['slide'][0]:.2f} | {int(m['feet_down'][0])} |")
+                    f"{m['final_speed'][0]:.2f} | {m['slide'][0]:.2f} | {int(m['feet_down'][0])} |")
 
     d = rows[default]
     outside = not (ref_lo <= d["est"] <= ref_hi)
-    slope = cond["slope_deg"]
-    steep = slope >= 10.0
-    differ_default = results[default]["class"] != ref["class"]
     verdict = (
-        f"**The study's default (robust/start/2 ms) {'DISAGREES' if outside else 'agrees'} "
-        f"with the reference in P(stable) {'beyond' if outside else 'within'} the reference's "
-        f"{CONFIDENCE:.0%} Wilson interval**: {d['est']:.3f} against {ref_est:.3f} "
-        f"[{ref_lo:.3f}, {ref_hi:.3f}]; paired over the same cases, {d['gained']} cases are "
-        f"stable only in the default and {d['lost']} only in the reference (McNemar "
+        f"> **{'Warning: the' if outside else 'The'} study's default (robust/start/2 ms) "
+        f"{'disagrees' if outside else 'agrees'} with the reference in P(stable) "
+        f"{'by more than' if outside else 'within'} the reference's {CONFIDENCE:.0%} Wilson "
+        f"interval**: {d['est']:.3f} against {ref_est:.3f} [{ref_lo:.3f}, {ref_hi:.3f}] "
+        f"(ΔP = {d['est'] - ref_est:+.3f}). Paired over the same cases, {d['gained']} cases "
+        f"are stable only with the default and {d['lost']} only with the reference (McNemar "
         f"p = {d['p']:.2g}).")
+
+    # the variants for statistics and for single cases, chosen from the numbers
+    candidates = [v for v in METHOD_VARIANTS if v != reference and v[2] >= reference[2]
+                  and ref_lo <= rows[v]["est"] <= ref_hi]
+    stats = min(candidates, key=lambda v: results[v]["cpu_per_case"]) if candidates else None
+    robust_fine = min((v for v in METHOD_VARIANTS if v[0] == "robust"), key=lambda v: v[2])
+    implicit_dts = [v for v in METHOD_VARIANTS if v[0] == "implicit" and v[1] == "end"]
+    pairs_default = {}
+    for a_cls, b_cls in zip(results[default]["class"], ref["class"]):
+        if a_cls != b_cls:
+            pairs_default[(a_cls, b_cls)] = pairs_default.get((a_cls, b_cls), 0) + 1
+    stab_to_fail = sum(c for (a_cls, b_cls), c in pairs_default.items() if a_cls == "stable")
     cores = os.cpu_count() or 1
+    cost_10k = {v: TARGET_CASES * results[v]["cpu_per_case"] / 60 for v in METHOD_VARIANTS}
+    implicit_finest = implicit_dts[-1]
+    moving = {v: int(np.sum(results[v]["stable"] & (results[v]["final_speed"] > MOVING_SPEED)))
+              for v in (default, reference)}
+    reading = (
+        "**Reading.** The contact method, not Δt, sets the statistics: 'implicit' converges "
+        "from below as Δt falls (P(stable) "
+        + " / ".join(f"{rows[v]['est']:.3f}" for v in implicit_dts) + " at "
+        + " / ".join(f"{v[2] * 1e3:g}" for v in implicit_dts) + " ms), while 'robust' "
+        f"stays {rows[robust_fine]['est'] - ref_est:+.2f} above the reference down to "
+        f"{robust_fine[2] * 1e3:g} ms ({rows[robust_fine]['est']:.3f}, and "
+        f"{agree(robust_fine, reference):.1%} of its classes agree with the reference "
+        f"against {agree(default, robust_fine):.1%} with its own 2-ms run). "
+        f"The default's error is one-sided — {stab_to_fail} of the "
+        f"{int(np.sum(results[default]['class'] != ref['class']))} changed cases are stable "
+        "with it and fail with the reference, mostly by tipping over — and largest on steep "
+        "slopes "
+        "(P(stable) "
+        + ", ".join(f"{t[0]:.2f} against {t[-1]:.2f}" for t in third_p)
+        + " in the three slope thirds). The likely cause, not isolated here, is what "
+        "docs/contact.md (\"Reading the benchmark\") measures of the robust step: in 3-D it "
+        "cannot turn the friction force towards the new slip, an error that does not "
+        "shrink with Δt, and it keeps contact in some steps where the exact step lifts "
+        "off. The tangent plane does not matter on a plane (robust/start and robust/end "
+        f"give the same class in {agree(default, ('robust', 'end', 2e-3)):.1%} of the "
+        "cases).")
+    if stats is not None:
+        advice = (
+            f"**Recommendation.** For the envelope's statistics use {_variant_label(stats)}: "
+            f"P(stable) {rows[stats]['est']:.3f} lies inside the reference's interval (ΔP "
+            f"{rows[stats]['est'] - ref_est:+.3f}, on the safe side; {rows[stats]['differ']:.1%} "
+            f"of the classes changed) at {results[stats]['cpu_per_case'] / default_cpu:.0f}× "
+            f"the default's CPU, {TARGET_CASES:,} cases in about {cost_10k[stats]:.0f} min of "
+            f"CPU (about {cost_10k[stats] / cores:.0f} min on {cores} free cores) against "
+            f"{cost_10k[default]:.1f} min; 'robust' overestimates P(stable) on this lander "
+            "and should not be used for its statistics. ")
+    else:
+        advice = ("**Recommendation.** No variant cheaper than the reference puts P(stable) "
+                  "inside the reference's interval: use the reference for the statistics. ")
+    check = ""
+    if implicit_finest[2] < reference[2]:
+        check = (f" ({rows[implicit_finest]['differ']:.1%} of the classes still change "
+                 f"between {reference[2] * 1e3:g} and {implicit_finest[2] * 1e3:g} ms)")
+    advice += (
+        f"For single cases use {_variant_label(reference)} or finer and read the margins: "
+        f"a case near a limit has no converged class at any of these steps{check}, like "
+        "the marginal case below. A \"stable\" case need not have come to rest within the "
+        f"2 s: {moving[default]} stable cases of the default and {moving[reference]} of "
+        f"the reference still move faster than {MOVING_SPEED:g} m/s at the end.")
     text = (
-        f"Produced by `python studies/bench_envelope.py --methods` on {cpu_name()} ({cores} "
-        f"cores, shared with other jobs), CasADi {ca.__version__}: the first {n} cases of the "
-        f"example study (its seed, {base.seed}) run with each contact method, tangent-plane "
-        f"reading and Δt, against the reference 'implicit', tangent plane at the end, "
-        f"Δt = {reference[2] * 1e3:g} ms. Each variant is one compiled `envelope_case`, run "
-        f"as one `map({n}, 'thread', {threads})`; CPU is that of the run alone (compile "
-        "excluded), per 2-s case, and its ratio to the study's variant, measured in one run "
-        f"on a shared machine. “ΔP” is P(stable) minus the reference's; “McNemar p” tests "
-        "the paired change (cases stable in one variant and not the other), far more "
-        "sensitive than comparing the two intervals. Changes are counted as “class here → "
-        "class in the reference” (stab = stable, tip = tip_over, strk = stroke, reb = "
-        f"rebound). Whole mode: {total / 60:.1f} min including compiles.\n\n"
+        f"Produced by `python studies/bench_envelope.py --methods` on {cpu_name()} "
+        f"({cores} cores, shared with other jobs), CasADi {ca.__version__}: the first "
+        f"{n} cases of the example study (its seed, {base.seed}; μ = {base.scene.mu:g}) run "
+        "with each contact method, tangent-plane reading and Δt, against the reference "
+        f"{_variant_label(reference)} (the exact backward-Euler Coulomb step, docs/contact.md). "
+        f"Each variant is one compiled `envelope_case`, run as one `map({n}, 'thread', "
+        f"{threads})`; CPU is that of the run alone (compile excluded), per 2-s case, and "
+        "its ratio to the study's variant, measured in one run on a shared machine. ΔP is "
+        "P(stable) minus the reference's; McNemar p tests the paired change (cases stable "
+        "with one variant and not the other), far more sensitive than comparing the two "
+        "intervals. Changes are counted as \"class here → class with the reference\" "
+        "(stab = stable, tip = tip_over, strk = stroke, reb = rebound). The rows marked "
+        "(check) are finer than the reference. Whole mode: "
+        f"{total / 60:.1f} min, of which {building:.0f} s generating or compiling C (each "
+        "variant once into build/envelope; an 'implicit' variant takes 45 s or more to "
+        "compile, so a first run takes about 5 min longer).\n\n"
         + verdict + "\n\n" + "\n".join(lines) + "\n\n"
+        + reading + "\n\n" + advice + "\n\n"
         "Classes of the study's variant against the reference, all cases:\n\n"
         + "\n".join(conf) + "\n\n"
-        f"Other agreements of class: robust/start 2 ms vs 0.5 ms {agree(rs, rf):.1%}; "
-        f"implicit 2 ms vs 1 ms {agree(i2, i1):.1%}; implicit 1 ms vs 0.5 ms "
-        f"{agree(i1, reference):.1%}; robust/start vs robust/end at 2 ms {agree(rs, re2):.1%}; "
-        f"robust vs implicit at 0.5 ms {agree(rf, reference):.1%}. Of the "
-        f"{int(np.sum(differ_default))} cases whose class differs between the study's variant "
-        f"and the reference, {int(np.sum(differ_default & steep))} are on slopes of 10° or "
-        f"more ({np.mean(steep):.0%} of all cases are).\n\n"
+        f"P(stable) by slope ({CONFIDENCE:.0%} Wilson):\n\n" + "\n".join(by_slope) + "\n\n"
+        "Agreement of classes: implicit 2 ms vs 1 ms "
+        f"{agree(implicit_dts[0], implicit_dts[1]):.1%}; "
+        f"implicit 1 ms vs 0.5 ms {agree(implicit_dts[1], reference):.1%}.\n\n"
         f"The marginal case of issue 9 (case {MARGINAL_CASE} of the study: "
         + ", ".join(f"{k} {marginal[k][0]:.4g}" for k in ("vertical_speed", "horizontal_speed",
                                                         "heading_deg", "slope_deg", "yaw_deg",
