@@ -140,6 +140,11 @@ class ImplicitSurface(Obstacle):
         self._phi = ca.Function("phi", [x], [expr])
         self._grad = ca.Function("grad_phi", [x], [grad])
 
+    @property
+    def functions(self) -> dict:
+        """``{"phi": phi(x) -> φ, "grad_phi": grad_phi(x) -> ∇φ}``, CasADi Functions of a 3-vector."""
+        return {"phi": self._phi, "grad_phi": self._grad}
+
     def _grad_safe(self, x):
         g = self._grad(x)
         g2 = ca.dot(g, g)

@@ -1,0 +1,583 @@
+"""Physical sanity of a valid scene, before and during a run.
+
+A scene whose every field is well-formed (``symcushion.validation``) can still
+describe nonsense: a body that starts inside the dome, feet off a terrain
+grid, a surface formula that is NaN where the feet go, a step above the
+explicit stability limit. This module owns those checks:
+
+* :func:`check_scene` — every check before the run, as a list of
+  :class:`Finding` (``severity`` "error" or "warning"); nothing is simulated.
+* :func:`preflight` — raises :class:`~symcushion.validation.SceneError` on
+  errors (and on warnings with ``strict``), else emits each warning as a
+  :class:`PhysicsWarning`.
+* :class:`RunMonitor` — the checks *during* a run, block by block of the
+  rollout: penetration, a leg passing through the obstacle, the body centre
+  inside it, non-finite state, energy growing beyond what the elements can
+  supply, a foot off a terrain grid.
+
+It only inspects: it never changes a scene, a state or a step, and it does
+not drive the simulation (``symcushion.simulate`` does, and calls it).
+docs/checks.md lists every check with its tolerance and its test.
+"""
+from __future__ import annotations
+
+import warnings
+from dataclasses import asdict, dataclass
+
+import casadi as ca
+import numpy as np
+
+from .obstacles import ImplicitSurface, Terrain
+from .scene import Scene
+from .simulate import BODY_STATE, LEG_STATE, build_model, initial_state, stable_dt
+from .validation import SceneError, did_you_mean
+
+__all__ = ["Finding", "PhysicsWarning", "check_scene", "preflight", "RunMonitor",
+           "DEFAULT_TOLERANCES", "START_TOLERANCE", "BODY_TOLERANCE", "REACH_FRACTIONS", "SAMPLE_DIRECTIONS",
+           "FD_STEP", "GRADIENT_TOLERANCE", "FAST_STEP_FRACTION", "DT_ERROR_RATIO"]
+
+#: How far (m) a foot may start below an obstacle's surface. A scene that puts
+#: the feet exactly on the surface (Figs. 3–4) computes that height in
+#: decimal and lands within ~1e-16 m; 1 µm is far above that round-off and
+#: far below any depth that gives a visible spring kick.
+START_TOLERANCE = 1e-6
+
+#: How deep the body centre may be below a surface, in units of the shortest
+#: leg. The body has no collision shape (only the feet touch), and a flat sled
+#: rests with its centre at its feet's plane (1 mm below it on 0.5 m legs in
+#: tests/test_simulate.py); 5 % of a leg (3 cm on Fig. 3) separates that from
+#: a body that starts in, or sinks into, the obstacle.
+BODY_TOLERANCE = 0.05
+
+#: Radii of the sample shells around each hinge, in units of the leg length:
+#: a foot cannot leave the ball of radius L₀ about its hinge by more than its
+#: axial stroke, so 1.25 L₀ covers the reachable region with margin.
+REACH_FRACTIONS = (0.25, 0.5, 0.75, 1.0, 1.25)
+#: Directions per shell (a Fibonacci sphere): 64 keeps the largest gap between
+#: neighbouring samples below 0.3 rad, i.e. 0.2 m on a 0.6 m leg.
+SAMPLE_DIRECTIONS = 64
+#: Central-difference step for the differentiability check, in units of L₀.
+#: 1e-6 L₀ balances truncation (h²) against round-off (eps/h) near 1e-10.
+FD_STEP = 1e-6
+#: Largest relative disagreement between ∇φ by AD and by central differences
+#: at a sample before φ counts as not differentiable there; a smooth φ agrees
+#: to about 1e-8, a kink or a vertical tangent (sqrt at 0) by O(1).
+GRADIENT_TOLERANCE = 1e-3
+
+#: A foot that travels more than this fraction of the shortest leg per step
+#: at the initial speed crosses most of its stroke in a few steps: the
+#: touchdown is under-resolved (a warning; 5 % of L₀ is 3 cm on Fig. 3 legs).
+FAST_STEP_FRACTION = 0.05
+
+#: Ratio dt/stable_dt above which the step is an error rather than a warning.
+#: ``stable_dt`` holds every foot fixed; a sliding foot (above all a
+#: frictionless one) resists along the normal only, which can soften the
+#: stiffest mode: Fig. 3 (μ = 0) runs stably at 1.4× the estimate. Past 10×
+#: (ω Δt = 20) the effective stiffness would have to be 100 times below the
+#: held one for the step to be stable.
+DT_ERROR_RATIO = 10.0
+
+#: Tolerances of :class:`RunMonitor` (override by passing ``tolerances``).
+DEFAULT_TOLERANCES = {
+    # m: a foot in contact is projected onto the surface to round-off and a
+    # free foot must be outside; 1 mm is deeper than any round-off yet well
+    # inside a visible failure of the contact step.
+    "penetration": 1e-3,
+    # relative to the energy scale (kinetic energy at the start + m|g|L₀ +
+    # what the elements can supply): velocity Verlet's energy fluctuates by
+    # O((ωΔt)²) of a mode's energy — 3e-4 of the scale in the hard cases at a
+    # stable step — while contact and friction only remove energy.
+    "energy": 1e-2,
+    # units of the shortest leg: see BODY_TOLERANCE.
+    "body": BODY_TOLERANCE,
+}
+
+#: Smallest energy scale (J), so that a scene at rest in zero gravity still
+#: has a finite relative tolerance.
+ENERGY_FLOOR = 1e-6
+
+
+class PhysicsWarning(UserWarning):
+    """A physically doubtful scene or run (see docs/checks.md)."""
+
+
+@dataclass
+class Finding:
+    """One result of a check.
+
+    Attributes
+    ----------
+    kind : str
+        Name of the check (``"foot_inside"``, ``"dt_unstable"``, ... docs/checks.md).
+    message : str
+        What is wrong, the value and the fix.
+    severity : {'error', 'warning'}
+    time : float, optional
+        Simulated time of the first occurrence (s), run-time checks only.
+    leg : int, optional
+        Index of the leg concerned.
+    value : float, optional
+        The offending number (a depth in m, a ratio, ...).
+    field : str, optional
+        The scene field to change (``scene.dt``, ``body.position``).
+    """
+
+    kind: str
+    message: str
+    severity: str
+    time: float | None = None
+    leg: int | None = None
+    value: float | None = None
+    field: str | None = None
+
+    def __post_init__(self):
+        if self.severity not in ("error", "warning"):
+            raise ValueError(f"`severity` must be 'error' or 'warning', got {self.severity!r}.")
+
+    def to_dict(self) -> dict:
+        """A JSON-ready dict (floats, ints, strings and None)."""
+        return asdict(self)
+
+
+# ---------------------------------------------------------------------------
+# helpers
+# ---------------------------------------------------------------------------
+def _rotations(q):
+    """Rotation matrices, shape (n, 3, 3), of unit quaternions q, shape (4, n)."""
+    q = q / np.linalg.norm(q, axis=0)
+    w, x, y, z = q
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)], 1)
+
+
+def _distances(scene: Scene, points) -> np.ndarray:
+    """Signed distance, shape (len(obstacles), n), of world points, shape (3, n)."""
+    p = ca.SX.sym("p", 3)
+    fn = ca.Function("obstacle_distance", [p], [ca.vertcat(*[o.distance(p)
+                                                              for o in scene.obstacles])],
+                     ["p"], ["d"])
+    return np.asarray(fn(np.asarray(points, float)), dtype=float).reshape(
+        len(scene.obstacles), -1)
+
+
+def _world_points(scene: Scene, X):
+    """Body centre (3, n), hinges (N, 3, n) and feet (N, 3, n) of states X (nx, n)."""
+    R = _rotations(X[6:10])
+    pos = X[0:3]
+    hinges = np.stack([pos + np.einsum("nij,j->in", R, leg.hinge) for leg in scene.legs])
+    feet = np.stack([X[BODY_STATE + LEG_STATE * j: BODY_STATE + LEG_STATE * j + 3]
+                     for j in range(len(scene.legs))])
+    return pos, hinges, feet
+
+
+def _where(scene, k):
+    ob = scene.obstacles[k]
+    return f"obstacle[{k}] ({ob.kind})"
+
+
+def _fibonacci_sphere(n):
+    i = np.arange(n) + 0.5
+    polar = np.arccos(1 - 2 * i / n)
+    azimuth = np.pi * (1 + 5 ** 0.5) * i
+    return np.stack([np.cos(azimuth) * np.sin(polar), np.sin(azimuth) * np.sin(polar),
+                     np.cos(polar)])
+
+
+# ---------------------------------------------------------------------------
+# before the run
+# ---------------------------------------------------------------------------
+def check_scene(scene: Scene, model=None, x0=None) -> list:
+    """Every check before the run (nothing is simulated).
+
+    Parameters
+    ----------
+    scene : Scene
+    model : StepModel, optional
+        Built by ``build_model(scene)`` if not given (needed for ``stable_dt``).
+    x0 : array_like, shape (nx,), optional
+        Initial state to check; default ``initial_state(scene)``.
+
+    Returns
+    -------
+    list of Finding
+        Errors first, then warnings. Zero gravity is valid and gives none.
+    """
+    if not isinstance(scene, Scene):
+        raise TypeError(f"`scene` must be a Scene (load_scene('x.toml')), got "
+                        f"{type(scene).__name__}.")
+    x0 = initial_state(scene) if x0 is None else np.asarray(x0, dtype=float).ravel()
+    findings = []
+    findings += _check_start(scene, x0)
+    findings += _check_terrain(scene, x0)
+    findings += _check_surfaces(scene, x0)
+    findings += _check_curves(scene)
+    findings += _check_time_step(scene, model, x0)
+    return sorted(findings, key=lambda f: f.severity != "error")
+
+
+def _check_start(scene, x0):
+    out = []
+    pos, hinges, feet = _world_points(scene, x0[:, None])
+    d_body = _distances(scene, pos)[:, 0]
+    allowed = BODY_TOLERANCE * min(leg.length for leg in scene.legs)
+    for k in np.flatnonzero(d_body < -allowed):
+        out.append(Finding("body_inside", f"`body.position`: the body centre starts "
+                           f"{-d_body[k]:.3g} m inside {_where(scene, k)} (tolerance "
+                           f"{allowed:.3g} m); move the body out of the obstacle.", "error", value=float(-d_body[k]),
+                           field="body.position"))
+    for j in range(len(scene.legs)):
+        d_foot = _distances(scene, feet[j])[:, 0]
+        d_hinge = _distances(scene, hinges[j])[:, 0]
+        k = int(np.argmin(d_foot))
+        if d_foot[k] < -START_TOLERANCE:
+            out.append(Finding("foot_inside", f"`body.position`: foot of leg {j} starts "
+                               f"{-d_foot[k]:.3g} m inside {_where(scene, k)} (tolerance "
+                               f"{START_TOLERANCE:g} m); the leg would get a spring kick — raise "
+                               "the body so the feet start on or above the surface.", "error",
+                               leg=j, value=float(-d_foot[k]), field="body.position"))
+        if np.min(d_hinge) < 0:
+            k = int(np.argmin(d_hinge))
+            out.append(Finding("hinge_inside", f"`body.position`: the hinge of leg {j} starts "
+                               f"{-d_hinge[k]:.3g} m inside {_where(scene, k)}; move the body "
+                               "out of the obstacle.", "error", leg=j,
+                               value=float(-d_hinge[k]), field="body.position"))
+    speed = float(np.linalg.norm(x0[3:6]))
+    shortest = min(leg.length for leg in scene.legs)
+    if speed * scene.dt > FAST_STEP_FRACTION * shortest:
+        out.append(Finding("fast_impact", f"`scene.dt`: at the initial speed {speed:.3g} m/s a "
+                           f"foot moves {speed * scene.dt:.3g} m per step, more than "
+                           f"{FAST_STEP_FRACTION:g} of the shortest leg ({shortest:g} m); the "
+                           "touchdown is under-resolved — reduce `dt`.", "warning",
+                           value=speed * scene.dt / shortest, field="scene.dt"))
+    return out
+
+
+def _check_terrain(scene, x0):
+    """Policy: a foot off a terrain's grid is an error (the height there is not data)."""
+    out = []
+    _, _, feet = _world_points(scene, x0[:, None])
+    for k, ob in enumerate(scene.obstacles):
+        if not isinstance(ob, Terrain):
+            continue
+        xs, ys = ob.grid
+        for j in range(len(scene.legs)):
+            fx, fy = feet[j, 0, 0], feet[j, 1, 0]
+            if not (xs[0] <= fx <= xs[-1] and ys[0] <= fy <= ys[-1]):
+                out.append(Finding(
+                    "off_terrain", f"`obstacle[{k}]`: foot of leg {j} starts at (x, y) = "
+                    f"({fx:.3g}, {fy:.3g}) m, off the terrain grid x ∈ [{xs[0]:g}, {xs[-1]:g}], "
+                    f"y ∈ [{ys[0]:g}, {ys[-1]:g}]; extend the grid or move the body over it.",
+                    "error", leg=j, field=f"obstacle[{k}]"))
+    return out
+
+
+def _check_surfaces(scene, x0):
+    """φ and ∇φ finite, and ∇φ equal to central differences, around every hinge."""
+    out = []
+    _, hinges, _ = _world_points(scene, x0[:, None])
+    directions = _fibonacci_sphere(SAMPLE_DIRECTIONS)
+    for k, ob in enumerate(scene.obstacles):
+        if not isinstance(ob, ImplicitSurface) or isinstance(ob, Terrain):
+            continue
+        phi, grad = ob.functions["phi"], ob.functions["grad_phi"]
+        for j, leg in enumerate(scene.legs):
+            shells = [hinges[j] + r * leg.length * directions for r in REACH_FRACTIONS]
+            pts = np.concatenate(shells, axis=1)
+            finding = _sample_surface(k, j, phi, grad, pts, FD_STEP * leg.length)
+            if finding is not None:
+                out.append(finding)
+                break                 # one finding per surface
+    return out
+
+
+def _sample_surface(k, j, phi, grad, pts, h):
+    with np.errstate(all="ignore"):
+        values = np.asarray(phi(pts), dtype=float).ravel()
+        g = np.asarray(grad(pts), dtype=float).reshape(3, -1)
+        bad = ~np.isfinite(values) | ~np.all(np.isfinite(g), axis=0)
+        if bad.any():
+            p = pts[:, np.argmax(bad)]
+            return Finding("surface_not_finite", f"`obstacle[{k}].phi` is not finite (or its "
+                           f"gradient is not) at {np.round(p, 4).tolist()} m, within reach of "
+                           f"leg {j}; {int(bad.sum())} of {bad.size} samples fail — use a "
+                           "formula defined everywhere near the feet (e.g. sqrt(x**2 + 1e-6) "
+                           "for sqrt(x)).", "error", leg=j, field=f"obstacle[{k}].phi")
+        fd = np.stack([(np.asarray(phi(pts + h * e[:, None])).ravel()
+                        - np.asarray(phi(pts - h * e[:, None])).ravel()) / (2 * h)
+                       for e in np.eye(3)])
+        err = np.linalg.norm(fd - g, axis=0) / np.maximum(np.linalg.norm(g, axis=0), 1.0)
+    if np.all(np.isfinite(err)) and np.max(err) <= GRADIENT_TOLERANCE:
+        return None
+    i = int(np.nanargmax(np.where(np.isfinite(err), err, np.inf)))
+    return Finding("surface_not_smooth", f"`obstacle[{k}].phi` is not differentiable near "
+                   f"{np.round(pts[:, i], 4).tolist()} m (within reach of leg {j}): its gradient "
+                   f"differs from central differences by {err[i]:.2g} (tolerance "
+                   f"{GRADIENT_TOLERANCE:g}); the contact normal jumps there — smooth the "
+                   "formula.", "warning", leg=j, value=float(err[i]), field=f"obstacle[{k}].phi")
+
+
+#: Deflection range sampled for the slope check: ± the leg length for the
+#: axial element (m), ± a quarter turn for the hinge elements (rad).
+_RANGES = {"S": 1.0, "M_beta": np.pi / 2, "M_gamma": np.pi / 2}
+_SLOPE_SAMPLES = 81
+
+
+def _check_curves(scene):
+    """Restoring curves: slope ≥ 0 at rest (error) and over the sampled range (warning)."""
+    out = []
+    for j, leg in enumerate(scene.legs):
+        for el in leg.elements:
+            extent = _RANGES[el.name] * (leg.length if el.name == "S" else 1.0)
+            xs = np.linspace(-extent, extent, _SLOPE_SAMPLES)
+            branches = [("loading", el.curve)]
+            if el.curve.unloading is not None:
+                branches.append(("unloading", el.curve.unloading))
+            for branch, curve in branches:
+                slopes = np.array([curve.slope(float(x)) if branch == "unloading" else
+                                   curve.slope(float(x), 0.0) for x in xs])
+                rest = slopes[_SLOPE_SAMPLES // 2]
+                where = f"legs[{j}].{el.name}"
+                hinge = "hinge stiffness" if el.name != "S" else "axial stiffness"
+                if rest < 0:
+                    out.append(Finding("negative_stiffness", f"`{where}`: the {branch} branch "
+                                       f"has negative {hinge} {rest:.4g} at rest; the element "
+                                       "pushes away from rest instead of restoring — give a "
+                                       "curve with a non-negative slope at 0.", "error", leg=j,
+                                       value=float(rest), field=where))
+                elif np.min(slopes) < 0:
+                    i = int(np.argmin(slopes))
+                    out.append(Finding("negative_slope", f"`{where}`: the {branch} branch has "
+                                       f"slope {slopes[i]:.4g} < 0 at deflection {xs[i]:.4g}; "
+                                       "the element snaps through there (D_p indefinite) — "
+                                       "check the knots.", "warning", leg=j,
+                                       value=float(slopes[i]), field=where))
+    return out
+
+
+def _check_time_step(scene, model, x0):
+    out = []
+    if scene.dt > scene.duration:
+        out.append(Finding("dt_above_duration", f"`scene.dt` = {scene.dt:g} s is longer than "
+                           f"`scene.duration` = {scene.duration:g} s: the run would be one "
+                           "step of dt; reduce `dt` or raise `duration`.", "error",
+                           value=scene.dt / scene.duration, field="scene.dt"))
+    model = build_model(scene) if model is None else model
+    try:
+        limit = stable_dt(model, x0)
+    except FloatingPointError as exc:
+        return out + [Finding("stiffness_not_finite", f"the legs' stiffness at the start is "
+                              f"not finite ({exc}); check the leg geometry.", "error")]
+    if scene.dt > limit:
+        ratio = scene.dt / limit
+        severity = "error" if ratio > DT_ERROR_RATIO else "warning"
+        out.append(Finding("dt_unstable", f"`scene.dt` = {scene.dt:g} s is {ratio:.3g} times "
+                           f"the stable step 2/ω_max = {limit:.3g} s of the stiffest leg mode "
+                           "(feet held): the explicit body update may diverge — use dt ≤ "
+                           f"{limit / 2:.3g} s, or simulate with adaptive=True, stability=True.",
+                           severity, value=ratio, field="scene.dt"))
+    return out
+
+
+def preflight(scene: Scene, model=None, strict: bool = False, *, x0=None, ignore=()) -> list:
+    """Run :func:`check_scene`; raise on errors, warn on warnings.
+
+    Parameters
+    ----------
+    scene, model, x0
+        As :func:`check_scene`.
+    strict : bool
+        Treat warnings as errors.
+    ignore : sequence of str
+        Kinds not to report (e.g. ``("dt_unstable",)`` when the driver caps
+        the step at the stability limit itself).
+
+    Returns
+    -------
+    list of Finding
+        The warnings (when nothing was raised).
+
+    Raises
+    ------
+    SceneError
+        Listing every error (and, with ``strict``, every warning).
+    """
+    findings = [f for f in check_scene(scene, model, x0) if f.kind not in ignore]
+    fatal = [f for f in findings if strict or f.severity == "error"]
+    if fatal:
+        raise SceneError(f"scene {scene.name!r}", [f"{f.severity}: {f.message}" for f in fatal])
+    for f in findings:
+        warnings.warn(f.message, PhysicsWarning, stacklevel=2)
+    return findings
+
+
+# ---------------------------------------------------------------------------
+# during the run
+# ---------------------------------------------------------------------------
+class RunMonitor:
+    """Checks of a rollout, fed block by block (state across blocks kept here).
+
+    Each kind of finding is reported once per leg (or once for the body),
+    with the first time it happens:
+
+    ``non_finite`` (error)
+        a NaN or inf in the state or output.
+    ``penetration`` (warning)
+        a foot deeper than ``tolerances['penetration']`` (m) below an obstacle.
+    ``pass_through`` (error)
+        a leg's hinge inside an obstacle: the strut has crossed the surface.
+    ``body_inside`` (error)
+        the body centre deeper inside an obstacle than ``tolerances['body']``
+        × the shortest leg (:data:`BODY_TOLERANCE`).
+    ``energy_growth`` (warning)
+        kinetic + gravitational energy above its start value by more than the
+        elements can supply (their elastic energy at the start plus preload ×
+        stroke) plus ``tolerances['energy']`` of the energy scale.
+    ``off_terrain`` (error)
+        a foot in contact off a terrain's grid.
+
+    Parameters
+    ----------
+    scene : Scene
+    model : StepModel, optional
+        Unused beyond its scene; accepted so that the driver passes what it has.
+    tolerances : dict, optional
+        Overrides of :data:`DEFAULT_TOLERANCES`.
+    x0 : array_like, shape (nx,), optional
+        The initial state (default ``initial_state(scene)``): the energy reference.
+    """
+
+    def __init__(self, scene: Scene, model=None, tolerances=None, x0=None):
+        if not isinstance(scene, Scene):
+            raise TypeError(f"`scene` must be a Scene, got {type(scene).__name__}.")
+        self.scene = scene
+        self.tolerances = dict(DEFAULT_TOLERANCES)
+        for key, value in (tolerances or {}).items():
+            if key not in DEFAULT_TOLERANCES:
+                raise ValueError(f"`tolerances` has unknown key {key!r}"
+                                 f"{did_you_mean(key, DEFAULT_TOLERANCES)}; known: "
+                                 f"{sorted(DEFAULT_TOLERANCES)}.")
+            if not (isinstance(value, (int, float)) and value > 0 and np.isfinite(value)):
+                raise ValueError(f"`tolerances['{key}']` must be a positive number, got "
+                                 f"{value!r}.")
+            self.tolerances[key] = float(value)
+        self.nx = BODY_STATE + LEG_STATE * len(scene.legs)
+        x0 = initial_state(scene) if x0 is None else np.asarray(x0, dtype=float).ravel()
+        self._energy0 = float(self._energy(x0[:, None])[0])
+        self._supply = _energy_supply(scene, x0)
+        g = float(np.linalg.norm(scene.gravity))
+        scale = (0.5 * scene.body.mass * float(x0[3:6] @ x0[3:6])
+                 + scene.body.mass * g * max(leg.length for leg in scene.legs) + self._supply)
+        self._allowed = self._supply + self.tolerances["energy"] * max(scale, ENERGY_FLOOR)
+        self._reported: set = set()
+
+    def _energy(self, X):
+        b = self.scene.body
+        v, omega = X[3:6], X[10:13]
+        return (0.5 * b.mass * np.sum(v * v, axis=0)
+                + 0.5 * np.einsum("in,ij,jn->n", omega, b.inertia, omega)
+                - b.mass * (self.scene.gravity @ X[0:3]))
+
+    def _add(self, out, kind, severity, t, message, leg=None, value=None):
+        if (kind, leg) in self._reported:
+            return
+        self._reported.add((kind, leg))
+        out.append(Finding(kind, message, severity, time=float(t), leg=leg,
+                           value=None if value is None else float(value)))
+
+    def check(self, t, X, Y) -> list:
+        """New findings of one block of the rollout.
+
+        Parameters
+        ----------
+        t : ndarray, shape (steps,)
+            Times of the columns (s).
+        X : ndarray, shape (nx, steps)
+            States after each step.
+        Y : ndarray, shape (ny, steps)
+            Per-step outputs.
+
+        Returns
+        -------
+        list of Finding
+            Only kinds (per leg) not reported in an earlier block.
+        """
+        t = np.asarray(t, dtype=float).ravel()
+        X, Y = np.asarray(X, dtype=float), np.asarray(Y, dtype=float)
+        if X.ndim != 2 or X.shape[0] != self.nx or X.shape[1] != t.size \
+                or Y.ndim != 2 or Y.shape[1] != t.size:
+            raise ValueError(f"`X` must have shape ({self.nx}, {t.size}) and `Y` (ny, {t.size}) "
+                             f"to match `t`, got {X.shape} and {Y.shape}.")
+        out = []
+        finite = np.all(np.isfinite(X), axis=0) & np.all(np.isfinite(Y), axis=0)
+        if not finite.all():
+            i = int(np.argmin(finite))
+            self._add(out, "non_finite", "error", t[i], f"the state became non-finite at "
+                      f"t = {t[i]:.6g} s; reduce `dt` or check the scene (docs/checks.md).")
+            t, X = t[:i], X[:, :i]
+        if t.size == 0:
+            return out
+        self._check_geometry(out, t, X)
+        gain = self._energy(X) - self._energy0
+        if np.max(gain) > self._allowed:
+            i = int(np.argmax(gain > self._allowed))
+            self._add(out, "energy_growth", "warning", t[i], f"the energy grew by "
+                      f"{gain[i]:.3g} J by t = {t[i]:.6g} s, more than the elements can supply "
+                      f"({self._allowed:.3g} J with tolerance); the step is unstable or the "
+                      "contact adds energy — reduce `dt`.", value=gain[i])
+        return out
+
+    def _check_geometry(self, out, t, X):
+        scene, tol = self.scene, self.tolerances["penetration"]
+        pos, hinges, feet = _world_points(scene, X)
+        d_body = _distances(scene, pos).min(axis=0)
+        allowed = self.tolerances["body"] * min(leg.length for leg in scene.legs)
+        if np.min(d_body) < -allowed:
+            i = int(np.argmax(d_body < -allowed))
+            self._add(out, "body_inside", "error", t[i], f"the body centre is inside an obstacle "
+                      f"at t = {t[i]:.6g} s ({-d_body[i]:.3g} m deep): the legs did not hold it.",
+                      value=-d_body[i])
+        for j in range(len(scene.legs)):
+            d_foot = _distances(scene, feet[j]).min(axis=0)
+            if np.min(d_foot) < -tol:
+                i = int(np.argmax(d_foot < -tol))
+                self._add(out, "penetration", "warning", t[i], f"foot of leg {j} is "
+                          f"{-d_foot[i]:.3g} m inside an obstacle at t = {t[i]:.6g} s (tolerance "
+                          f"{tol:g} m).", leg=j, value=-d_foot[i])
+            d_hinge = _distances(scene, hinges[j]).min(axis=0)
+            if np.min(d_hinge) < 0:
+                i = int(np.argmax(d_hinge < 0))
+                self._add(out, "pass_through", "error", t[i], f"leg {j} passed through the "
+                          f"obstacle at t = {t[i]:.6g} s: its hinge is {-d_hinge[i]:.3g} m inside.",
+                          leg=j, value=-d_hinge[i])
+            contact = X[BODY_STATE + LEG_STATE * j + 3] > 0.5
+            for k, ob in enumerate(scene.obstacles):
+                if isinstance(ob, Terrain):
+                    xs, ys = ob.grid
+                    off = contact & ((feet[j, 0] < xs[0]) | (feet[j, 0] > xs[-1])
+                                     | (feet[j, 1] < ys[0]) | (feet[j, 1] > ys[-1]))
+                    if off.any():
+                        i = int(np.argmax(off))
+                        self._add(out, "off_terrain", "error", t[i], f"foot of leg {j} is in "
+                                  f"contact off the grid of obstacle[{k}] at t = {t[i]:.6g} s.",
+                                  leg=j)
+
+
+def _energy_supply(scene: Scene, x0) -> float:
+    """Energy (J) the elements can give the body: elastic energy at x0 + |f(0)| × stroke."""
+    supply = 0.0
+    R = _rotations(x0[6:10, None])[0]
+    for j, leg in enumerate(scene.legs):
+        foot = x0[BODY_STATE + LEG_STATE * j: BODY_STATE + LEG_STATE * (j + 1)]
+        rho = R.T @ (foot[0:3] - x0[0:3]) if foot[3] > 0.5 else leg.rest_foot
+        geo = leg.functions()["strut_geometry"](rho)
+        deflection = {"S": float(geo[1]), "M_beta": float(geo[2]),
+                      "M_gamma": float(geo[3]) - leg.gamma0}
+        for el in leg.elements:
+            stroke = leg.length if el.name == "S" else np.pi
+            xs = np.linspace(0.0, deflection[el.name], 65)
+            forces = np.array([abs(el.curve.force(float(x))) for x in xs])
+            supply += float(np.sum(0.5 * (forces[1:] + forces[:-1]) * np.abs(np.diff(xs))))
+            supply += abs(el.curve.force(0.0)) * stroke
+    return supply
