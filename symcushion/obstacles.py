@@ -20,7 +20,7 @@ from typing import Callable, Sequence
 import casadi as ca
 import numpy as np
 
-from .validation import real, vector
+from .validation import direction, real, vector
 
 __all__ = ["Obstacle", "Plane", "Sphere", "ImplicitSurface", "Terrain", "PROJECTION_ITERS",
            "closest_obstacle"]
@@ -62,11 +62,7 @@ class Plane(Obstacle):
 
     def __init__(self, point=(0.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0)):
         self.point = _vec3("point", point)
-        n = _vec3("normal", normal)
-        if np.linalg.norm(n) < 1e-12:
-            raise ValueError(f"`normal` must be non-zero, got {normal!r}; give the outward "
-                             "normal, e.g. (0, 0, 1).")
-        self.n = n / np.linalg.norm(n)
+        self.n = direction("normal", normal)
 
     @classmethod
     def inclined(cls, angle, point=(0.0, 0.0, 0.0)):

@@ -22,7 +22,8 @@ from .characteristics import Crushable, Curve, Linear, PiecewiseLinear
 from .obstacles import ImplicitSurface, Obstacle, Plane, Sphere, Terrain
 from .strut import HingedStrut
 from .formula import Formula, FormulaError
-from .validation import INVALID, Problems, SceneError, Table, choice, integer, real, show, vector
+from .validation import (INVALID, Problems, SceneError, Table, choice, direction, integer,
+                         real, show, vector)
 from .validation import path as validate_path
 
 if sys.version_info >= (3, 11):
@@ -95,10 +96,7 @@ class Body:
             raise ValueError(f"`body.inertia` must be symmetric positive definite, got {inertia.tolist()}.")
         self.inertia = inertia
         self.position = _vec("body.position", self.position)
-        q = _vec("body.attitude", self.attitude, 4)
-        if np.linalg.norm(q) < 1e-12:
-            raise ValueError(f"`body.attitude` must be a non-zero quaternion, got {q.tolist()}.")
-        self.attitude = q / np.linalg.norm(q)
+        self.attitude = direction("body.attitude", self.attitude, 4)
         self.velocity = _vec("body.velocity", self.velocity)
         self.angular_velocity = _vec("body.angular_velocity", self.angular_velocity)
 

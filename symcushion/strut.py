@@ -40,7 +40,7 @@ import casadi as ca
 import numpy as np
 
 from .characteristics import Curve, Linear
-from .validation import real, vector
+from .validation import direction, real, vector
 
 __all__ = ["HingedStrut", "RIGID_AXIAL_RATIO", "SINGULAR_ANGLE", "leg_geometry_expr"]
 
@@ -62,14 +62,7 @@ SINGULAR_ANGLE = np.deg2rad(1.0)
 
 
 def _vector(name, value, *, unit=False):
-    arr = vector(name, value, (3,))
-    if unit:
-        norm = np.linalg.norm(arr)
-        if norm < 1e-12:
-            raise ValueError(f"`{name}` must be a non-zero direction, got {arr.tolist()}; "
-                             "give a 3-vector of non-zero length.")
-        arr = arr / norm
-    return arr
+    return direction(name, value) if unit else vector(name, value, (3,))
 
 
 def _unit(v):

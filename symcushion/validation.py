@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["SceneError", "Problems", "Table", "INVALID", "real", "integer", "vector",
+__all__ = ["SceneError", "Problems", "Table", "INVALID", "real", "integer", "vector", "direction",
            "choice", "boolean", "path", "did_you_mean", "show"]
 
 #: Longest repr of a bad value quoted in a message (characters); a 10⁶-entry
@@ -141,6 +141,21 @@ def vector(name: str, value, shape=(3,), *, finite=True, what="numbers") -> np.n
         raise ValueError(f"`{name}` must be {'finite' if finite else 'not NaN'}, got "
                          f"{show(arr)}; give finite {what}.")
     return arr
+
+
+def direction(name: str, value, size=3) -> np.ndarray:
+    """``value`` normalised to unit length; a zero or non-finite vector is an error.
+
+    Scaled by its largest component before the norm, so that 1e300-sized
+    input normalises instead of overflowing to inf (and then to zero).
+    """
+    arr = vector(name, value, (size,))
+    biggest = np.max(np.abs(arr))
+    if not biggest > 0:
+        raise ValueError(f"`{name}` must be a non-zero direction, got {arr.tolist()}; give "
+                         f"{size} components of non-zero length.")
+    arr = arr / biggest
+    return arr / np.linalg.norm(arr)
 
 
 def _shape(shape) -> str:
