@@ -138,7 +138,7 @@ class ImplicitSurface(Obstacle):
 
     @property
     def functions(self) -> dict:
-        """``{"phi": phi(x) -> φ, "grad_phi": grad_phi(x) -> ∇φ}``, CasADi Functions of a 3-vector."""
+        """``phi(x) -> φ`` and ``grad_phi(x) -> ∇φ``: CasADi Functions of a 3-vector (m)."""
         return {"phi": self._phi, "grad_phi": self._grad}
 
     def _grad_safe(self, x):

@@ -14,7 +14,6 @@ from __future__ import annotations
 import sys
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 
@@ -93,7 +92,8 @@ class Body:
                 raise ValueError(f"`body.inertia` must be 3 numbers (the diagonal) or a 3×3 "
                                  f"matrix in kg·m², got {show(self.inertia)}.") from None
         if not np.allclose(inertia, inertia.T) or np.any(np.linalg.eigvalsh(inertia) <= 0):
-            raise ValueError(f"`body.inertia` must be symmetric positive definite, got {inertia.tolist()}.")
+            raise ValueError(f"`body.inertia` must be symmetric positive definite, got "
+                             f"{inertia.tolist()}; give the principal moments (kg·m²).")
         self.inertia = inertia
         self.position = _vec("body.position", self.position)
         self.attitude = direction("body.attitude", self.attitude, 4)

@@ -3,7 +3,6 @@
 Each test is one case of the list of bad scene files and API calls (silent wrong
 physics, tracebacks or hangs, API misuse); the name says which.
 """
-import copy
 import sys
 import time
 from pathlib import Path
@@ -14,9 +13,8 @@ import pytest
 from symcushion.characteristics import Linear, PiecewiseLinear
 from symcushion.checks import PhysicsWarning, RunMonitor, check_scene
 from symcushion.cli import main
-from symcushion.obstacles import Sphere
 from symcushion.scene import Scene, load_scene, scene_from_dict
-from symcushion.simulate import BODY_STATE, LEG_STATE, simulate
+from symcushion.simulate import simulate
 from symcushion.validation import SceneError
 
 if sys.version_info >= (3, 11):

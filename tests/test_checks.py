@@ -6,8 +6,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from symcushion.checks import (BODY_TOLERANCE, DEFAULT_TOLERANCES, START_TOLERANCE, Finding,
-                               PhysicsWarning, RunMonitor, check_scene, preflight)
+from symcushion.checks import (BODY_TOLERANCE, START_TOLERANCE, Finding, PhysicsWarning,
+                               RunMonitor, check_scene, preflight)
+from symcushion.monitor import DEFAULT_TOLERANCES
 from symcushion.scene import load_scene, scene_from_dict
 from symcushion.simulate import BODY_STATE, LEG_STATE, build_model, initial_state, simulate
 from symcushion.validation import SceneError
