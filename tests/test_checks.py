@@ -55,6 +55,11 @@ def _moved(scene, dz):
     return replace(scene.body, position=scene.body.position + np.array([0.0, 0.0, dz]))
 
 
+def test_body_far_inside_puts_hinges_inside_too():
+    found = check_scene(fig3().with_(body=_moved(fig3(), -0.75)))   # centre 7 cm deep
+    assert {"body_inside", "hinge_inside", "foot_inside"} <= {f.kind for f in found}
+
+
 def test_preflight_raises_on_errors_warns_on_warnings_and_strict_raises_both():
     scene = fig3()
     fast = scene.with_(body=_velocity(scene, -100.0))
@@ -151,3 +156,32 @@ def test_simulate_runs_preflight():
     scene = fig3()
     with pytest.raises(SceneError, match="body centre starts"):
         simulate(scene.with_(body=_moved(scene, -1.0)))
+
+
+def test_negative_slope_away_from_rest_is_a_warning():
+    scene = fig3()
+    data = {"type": "piecewise", "x": [-1.0, 0.0, 0.5, 1.0], "f": [-1200.0, 0.0, 600.0, 300.0]}
+    from symcushion.scene import _curve
+    from symcushion.validation import Table
+    curve = _curve(Table(data, "legs.M_beta", "test"))
+    legs = [type(leg)(leg.hinge, leg.e0, leg.en, leg.length, M_beta=curve,
+                      M_gamma=leg.elements[-1].curve) for leg in scene.legs]
+    found = check_scene(scene.with_(legs=legs))
+    assert [(f.kind, f.severity) for f in found] == [("negative_slope", "warning")] * 4
+    assert found[0].value == pytest.approx(-600.0, rel=1e-12)     # (300 − 600)/0.5
+
+
+def test_dt_a_little_above_the_stable_step_is_a_warning():
+    found = check_scene(fig3().with_(dt=4e-3))
+    assert [(f.kind, f.severity) for f in found] == [("dt_unstable", "warning")]
+    assert 1 < found[0].value < 10
+
+
+def test_monitor_reports_a_foot_in_contact_off_the_terrain_grid():
+    from symcushion.obstacles import Terrain
+    scene = fig3().with_(obstacles=[Terrain.crater()])      # grid ±3 m
+    x = initial_state(scene)
+    foot0 = BODY_STATE
+    x[foot0:foot0 + 4] = [3.5, 0.0, 0.0, 1.0]                # in contact at x = 3.5 m
+    found = RunMonitor(scene).check(np.array([0.01]), x[:, None], np.zeros((1, 1)))
+    assert [(f.kind, f.leg, f.severity) for f in found] == [("off_terrain", 0, "error")]
