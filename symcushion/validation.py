@@ -203,10 +203,6 @@ class _Invalid:
 INVALID = _Invalid()
 
 
-class _Skip(Exception):
-    """Raised inside a section whose fields already failed: nothing more to report."""
-
-
 class Problems:
     """Collector of a file's problems, shared by all its :class:`Table` objects."""
 
@@ -217,19 +213,6 @@ class Problems:
     def add(self, message: str):
         if message not in self.items:
             self.items.append(message)
-
-    def attempt(self, build, *args, where: str = ""):
-        """``build(*args)``, or None after recording its ValueError/TypeError."""
-        try:
-            return build(*args)
-        except _Skip:
-            return None
-        except SceneError as exc:
-            for p in exc.problems:
-                self.add(p)
-        except (ValueError, TypeError) as exc:
-            self.add(f"`{where}`: {exc}" if where else str(exc))
-        return None
 
     def raise_if_any(self):
         if self.items:
@@ -282,11 +265,6 @@ class Table:
             raise ValueError(f"{self.source}: {message}")
         self.problems.add(message)
         return INVALID
-
-    def check(self):
-        """Stop building this section (raise ``_Skip``) if one of its fields failed."""
-        if self.failed:
-            raise _Skip()
 
     def _finite(self, value) -> bool:
         value = np.asarray(value, dtype=float)

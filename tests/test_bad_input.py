@@ -15,7 +15,9 @@ from symcushion.checks import PhysicsWarning, RunMonitor, check_scene
 from symcushion.cli import main
 from symcushion.scene import Scene, load_scene, scene_from_dict
 from symcushion.simulate import simulate
-from symcushion.validation import SceneError
+from symcushion.validation import (SceneError, boolean, choice, direction, integer, real,
+                                   vector)
+from symcushion.validation import path as validate_path
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -238,3 +240,39 @@ def test_check_command_exit_codes(tmp_path, capsys):
     assert main(["check", str(fast)]) == 0
     assert "warning" in capsys.readouterr().out
     assert main(["check", str(fast), "--strict"]) == 1
+
+
+# -- the shared validators --------------------------------------------------------------
+@pytest.mark.parametrize("call, error, needle", [
+    (lambda: real("dt", "0.1"), TypeError, "`dt` must be a real number, got '0.1' of type str"),
+    (lambda: real("dt", True), TypeError, "`dt` must be a real number"),
+    (lambda: real("dt", float("nan")), ValueError, "`dt` must be a finite number, got nan"),
+    (lambda: real("dt", 0.0, positive=True, unit="s"), ValueError,
+     "`dt` must be positive s, got 0.0; give a value > 0"),
+    (lambda: real("mu", -0.1, nonnegative=True), ValueError, "give a value >= 0"),
+    (lambda: integer("count", 2.0), TypeError, "`count` must be an integer, got 2.0"),
+    (lambda: integer("count", 0, minimum=1), ValueError, "`count` must be an integer >= 1, got 0"),
+    (lambda: vector("gravity", [0, 0], (3,)), ValueError, "`gravity` must have shape (3,), got "
+     "shape (2,)"),
+    (lambda: vector("gravity", "down", (3,)), TypeError, "`gravity` must be an array"),
+    (lambda: vector("gravity", [0, float("inf"), 0], (3,)), ValueError, "must be finite"),
+    (lambda: choice("method", "implict", ("paper", "robust", "implicit")), ValueError,
+     "did you mean 'implicit'?"),
+    (lambda: boolean("smooth", 1), TypeError, "`smooth` must be True or False, got 1"),
+    (lambda: direction("en", [0.0, 0.0, 0.0]), ValueError, "`en` must be a non-zero direction"),
+    (lambda: validate_path("path", 3), TypeError, "`path` must be a file path"),
+    (lambda: validate_path("path", "no/such.toml", must_exist=True), FileNotFoundError,
+     "'no/such.toml' does not exist"),
+])
+def test_validators_name_the_argument_value_and_fix(call, error, needle):
+    with pytest.raises(error) as info:
+        call()
+    assert needle in str(info.value), str(info.value)
+
+
+def test_validators_accept_numpy_scalars_and_normalise_huge_directions():
+    assert real("mu", np.float32(0.25)) == 0.25 and integer("count", np.int64(3)) == 3
+    assert boolean("smooth", np.bool_(True)) is True
+    np.testing.assert_allclose(direction("en", [1e300, 0.0, 1e300]),
+                               [2 ** -0.5, 0.0, 2 ** -0.5], rtol=1e-15)
+    assert vector("x", [[1.0, 2.0]], (1, None)).shape == (1, 2)
