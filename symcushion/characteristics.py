@@ -24,6 +24,8 @@ from typing import Sequence
 import casadi as ca
 import numpy as np
 
+from .validation import boolean, real, vector
+
 __all__ = [
     "Curve",
     "Linear",
@@ -72,18 +74,10 @@ def _ramp_slope(u, width):
 
 
 def _check_real(name, value, *, positive=False, nonnegative=False):
+    """A real parameter (NumPy scalars included), or a symbolic one passed through."""
     if isinstance(value, (ca.SX, ca.MX)):
         return value
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-        raise TypeError(f"`{name}` must be a real number, got {value!r} of type {type(value).__name__}.")
-    value = float(value)
-    if not np.isfinite(value):
-        raise ValueError(f"`{name}` must be finite, got {value!r}; give a finite number.")
-    if positive and value <= 0:
-        raise ValueError(f"`{name}` must be positive, got {value!r}; give a value > 0.")
-    if nonnegative and value < 0:
-        raise ValueError(f"`{name}` must be non-negative, got {value!r}; give a value >= 0.")
-    return value
+    return real(name, value, positive=positive, nonnegative=nonnegative)
 
 
 @dataclass(frozen=True)
@@ -122,7 +116,7 @@ class Curve:
         if unloading is not None and unloading.unloading is not None:
             raise ValueError("`unloading` must not have an unloading branch of its own; "
                              "give a plain curve.")
-        self.smooth = bool(smooth)
+        self.smooth = boolean("smooth", smooth)
         self.kink_width = _check_real("kink_width", kink_width, positive=True)
         if unloading is not None and self.smooth and not unloading.smooth:
             # `smooth` promises no kinks: round the unloading branch's knots
@@ -131,7 +125,7 @@ class Curve:
             unloading.smooth, unloading.kink_width = True, self.kink_width
         self.unloading = unloading
         self.rate_width = _check_real("rate_width", rate_width, positive=True)
-        self.tunable = bool(tunable)
+        self.tunable = boolean("tunable", tunable)
 
     # -- parameters -------------------------------------------------------
     _branch: _Branch
@@ -242,14 +236,17 @@ class Linear(Curve):
     Parameters
     ----------
     stiffness : float
-        k, N/m (axial) or N·m/rad (hinge); positive means restoring.
+        k, N/m (axial) or N·m/rad (hinge), ≥ 0: a resistance curve restores. A
+        negative k pushes the element further from rest (an unstable spring);
+        a softening element is a :class:`PiecewiseLinear` curve, whose slopes
+        ``symcushion.checks`` inspects.
     preload : float
         f(0), N or N·m. A non-zero preload loads the leg at its rest pose.
     """
 
     def __init__(self, stiffness, preload=0.0, **options):
         super().__init__(**options)
-        stiffness = _check_real("stiffness", stiffness)
+        stiffness = _check_real("stiffness", stiffness, nonnegative=True)
         preload = _check_real("preload", preload)
         self._branch = _Branch(("k", "preload"), (stiffness, preload))
 
@@ -278,8 +275,8 @@ class PiecewiseLinear(Curve):
 
     def __init__(self, x: Sequence[float], f: Sequence[float], **options):
         super().__init__(**options)
-        xs = np.asarray(x, dtype=float).ravel()
-        fs = np.asarray(f, dtype=float).ravel()
+        xs = vector("x", x, (None,), what="knot positions")
+        fs = vector("f", f, (None,), what="knot values")
         if xs.size < 2:
             raise ValueError(f"`x` needs at least 2 knots, got {xs.size}; give two or more.")
         if fs.size != xs.size:

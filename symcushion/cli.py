@@ -1,4 +1,4 @@
-"""Command line: ``symcushion reproduce | simulate | codegen | optimise | envelope``.
+"""Command line: ``symcushion reproduce | simulate | check | codegen | optimise | envelope``.
 
 Each sub-command is a thin layer over the public API; it parses arguments,
 reports progress and turns library errors into one-line messages.
@@ -37,6 +37,23 @@ def _cmd_simulate(args):
           f"{traj.info['wall_seconds']:.2f} s wall, step criterion max "
           f"{traj.info['criterion_max']:.2e}, halvings {traj.info['halvings']})")
     return 0
+
+
+def _cmd_check(args):
+    from .checks import check_scene
+    from .scene import load_scene
+
+    try:
+        scene = load_scene(args.scene)
+    except (ValueError, FileNotFoundError) as exc:    # SceneError lists every bad field
+        print(f"symcushion check: error: {exc}", file=sys.stderr)
+        return 1
+    findings = check_scene(scene)
+    for f in findings:
+        print(f"{args.scene}: {f.severity}: {f.message}")
+    errors = sum(f.severity == "error" for f in findings)
+    print(f"{args.scene}: {errors} error(s), {len(findings) - errors} warning(s)")
+    return 1 if errors or (args.strict and findings) else 0
 
 
 def _cmd_codegen(args):
@@ -126,6 +143,12 @@ def main(argv=None) -> int:
     p.add_argument("--adaptive", action="store_true",
                    help="halve dt where the paper's criterion 1 - n_k.n_k+1 < eps fails")
     p.set_defaults(func=_cmd_simulate)
+
+    p = sub.add_parser("check", help="check a scene TOML file (fields and physics) without "
+                                     "simulating (docs/checks.md)")
+    p.add_argument("scene", type=Path)
+    p.add_argument("--strict", action="store_true", help="exit 1 on warnings too")
+    p.set_defaults(func=_cmd_check)
 
     p = sub.add_parser("codegen", help="generate C code of the contact steps (and a scene's "
                                        "touchdown); --build compiles it (docs/codegen.md)")

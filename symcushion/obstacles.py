@@ -20,6 +20,8 @@ from typing import Callable, Sequence
 import casadi as ca
 import numpy as np
 
+from .validation import direction, real, vector
+
 __all__ = ["Obstacle", "Plane", "Sphere", "ImplicitSurface", "Terrain", "PROJECTION_ITERS",
            "closest_obstacle"]
 
@@ -35,10 +37,7 @@ _GRAD_GUARD = 1e-300
 
 
 def _vec3(name, value):
-    arr = np.asarray(value, dtype=float).ravel()
-    if arr.size != 3 or not np.all(np.isfinite(arr)):
-        raise ValueError(f"`{name}` must be a finite 3-vector, got {value!r}.")
-    return arr
+    return vector(name, value, (3,))
 
 
 class Obstacle:
@@ -63,14 +62,12 @@ class Plane(Obstacle):
 
     def __init__(self, point=(0.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0)):
         self.point = _vec3("point", point)
-        n = _vec3("normal", normal)
-        if np.linalg.norm(n) < 1e-12:
-            raise ValueError(f"`normal` must be non-zero, got {normal!r}.")
-        self.n = n / np.linalg.norm(n)
+        self.n = direction("normal", normal)
 
     @classmethod
     def inclined(cls, angle, point=(0.0, 0.0, 0.0)):
         """A plane tilted by ``angle`` (rad) about the y axis: it descends along +x."""
+        angle = real("angle", angle, unit="rad")
         return cls(point, (np.sin(angle), 0.0, np.cos(angle)))
 
     def distance(self, x):
@@ -90,9 +87,7 @@ class Sphere(Obstacle):
 
     def __init__(self, center=(0.0, 0.0, 0.0), radius=1.0):
         self.center = _vec3("center", center)
-        if not (np.isfinite(radius) and radius > 0):
-            raise ValueError(f"`radius` must be positive, got {radius!r}.")
-        self.radius = float(radius)
+        self.radius = real("radius", radius, positive=True, unit="m")
 
     def _offset(self, x):
         d = x - ca.DM(self.center)
@@ -141,6 +136,11 @@ class ImplicitSurface(Obstacle):
         self._phi = ca.Function("phi", [x], [expr])
         self._grad = ca.Function("grad_phi", [x], [grad])
 
+    @property
+    def functions(self) -> dict:
+        """``phi(x) -> φ`` and ``grad_phi(x) -> ∇φ``: CasADi Functions of a 3-vector (m)."""
+        return {"phi": self._phi, "grad_phi": self._grad}
+
     def _grad_safe(self, x):
         g = self._grad(x)
         g2 = ca.dot(g, g)
@@ -175,9 +175,9 @@ class Terrain(ImplicitSurface):
     kind = "terrain"
 
     def __init__(self, x: Sequence[float], y: Sequence[float], heights):
-        xs = np.asarray(x, dtype=float).ravel()
-        ys = np.asarray(y, dtype=float).ravel()
-        H = np.asarray(heights, dtype=float)
+        xs = vector("x", x, (None,), what="grid lines")
+        ys = vector("y", y, (None,), what="grid lines")
+        H = vector("heights", heights, (xs.size, ys.size), what="heights")
         for name, g in (("x", xs), ("y", ys)):
             if g.size < 4 or np.any(np.diff(g) <= 0) or not np.all(np.isfinite(g)):
                 raise ValueError(f"`{name}` must hold at least 4 strictly increasing finite "
@@ -197,6 +197,8 @@ class Terrain(ImplicitSurface):
     @classmethod
     def crater(cls, radius=2.0, depth=0.3, rim=0.1, extent=6.0, cells=49):
         """A smooth crater: a bowl of given radius and depth with a raised rim."""
+        radius = real("radius", radius, positive=True, unit="m")
+        depth, rim = real("depth", depth, unit="m"), real("rim", rim, unit="m")
         g = np.linspace(-extent / 2, extent / 2, cells)
         X, Y = np.meshgrid(g, g, indexing="ij")
         rho = np.hypot(X, Y) / radius
@@ -210,6 +212,9 @@ class Terrain(ImplicitSurface):
 
         ``rocks`` holds (x, y, height, radius) tuples in metres.
         """
+        angle = real("angle", angle, unit="rad")
+        if not abs(angle) < np.pi / 2:
+            raise ValueError(f"`angle` must be within (-pi/2, pi/2) rad, got {angle!r}.")
         g = np.linspace(-extent / 2, extent / 2, cells)
         X, Y = np.meshgrid(g, g, indexing="ij")
         H = -np.tan(angle) * X

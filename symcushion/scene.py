@@ -14,20 +14,24 @@ from __future__ import annotations
 import sys
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 
 from .characteristics import Crushable, Curve, Linear, PiecewiseLinear
 from .obstacles import ImplicitSurface, Obstacle, Plane, Sphere, Terrain
 from .strut import HingedStrut
+from .formula import Formula, FormulaError
+from .validation import (INVALID, Problems, SceneError, Table, choice, direction, integer,
+                         real, show, vector)
+from .validation import path as validate_path
 
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover
     import tomli as tomllib
 
-__all__ = ["Body", "Scene", "symmetric_legs", "load_scene", "scene_from_dict", "METHODS"]
+__all__ = ["Body", "Scene", "SceneError", "symmetric_legs", "load_scene", "scene_from_dict",
+           "METHODS"]
 
 #: Contact methods of ``symcushion.contact``.
 METHODS = ("paper", "robust", "implicit")
@@ -41,21 +45,11 @@ TANGENT_PLANES = ("start", "end")
 
 
 def _vec(name, value, size=3):
-    try:
-        arr = np.asarray(value, dtype=float).ravel()
-    except (TypeError, ValueError):
-        raise TypeError(f"`{name}` must be {size} numbers, got {value!r}.") from None
-    if arr.size != size or not np.all(np.isfinite(arr)):
-        raise ValueError(f"`{name}` must be {size} finite numbers, got {value!r}.")
-    return arr
+    return vector(name, value, (size,))
 
 
-def _positive(name, value):
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-        raise TypeError(f"`{name}` must be a number, got {value!r}.")
-    if not (np.isfinite(value) and value > 0):
-        raise ValueError(f"`{name}` must be positive and finite, got {value!r}.")
-    return float(value)
+def _positive(name, value, unit=""):
+    return real(name, value, positive=True, unit=unit)
 
 
 @dataclass
@@ -87,20 +81,22 @@ class Body:
     angular_velocity: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     def __post_init__(self):
-        self.mass = _positive("body.mass", self.mass)
-        inertia = np.asarray(self.inertia, dtype=float)
-        if inertia.shape == (3,):
+        self.mass = _positive("body.mass", self.mass, "kg")
+        try:
+            inertia = vector("body.inertia", self.inertia, (3,))
             inertia = np.diag(inertia)
-        if inertia.shape != (3, 3) or not np.all(np.isfinite(inertia)):
-            raise ValueError(f"`body.inertia` must be 3 numbers or a 3×3 matrix, got {self.inertia!r}.")
+        except (TypeError, ValueError):
+            try:
+                inertia = vector("body.inertia", self.inertia, (3, 3))
+            except (TypeError, ValueError):
+                raise ValueError(f"`body.inertia` must be 3 numbers (the diagonal) or a 3×3 "
+                                 f"matrix in kg·m², got {show(self.inertia)}.") from None
         if not np.allclose(inertia, inertia.T) or np.any(np.linalg.eigvalsh(inertia) <= 0):
-            raise ValueError(f"`body.inertia` must be symmetric positive definite, got {inertia.tolist()}.")
+            raise ValueError(f"`body.inertia` must be symmetric positive definite, got "
+                             f"{inertia.tolist()}; give the principal moments (kg·m²).")
         self.inertia = inertia
         self.position = _vec("body.position", self.position)
-        q = _vec("body.attitude", self.attitude, 4)
-        if np.linalg.norm(q) < 1e-12:
-            raise ValueError(f"`body.attitude` must be a non-zero quaternion, got {q.tolist()}.")
-        self.attitude = q / np.linalg.norm(q)
+        self.attitude = direction("body.attitude", self.attitude, 4)
         self.velocity = _vec("body.velocity", self.velocity)
         self.angular_velocity = _vec("body.angular_velocity", self.angular_velocity)
 
@@ -151,18 +147,14 @@ class Scene:
         self.obstacles = list(self.obstacles)
         if not self.obstacles or not all(isinstance(o, Obstacle) for o in self.obstacles):
             raise ValueError("`obstacles` must be a non-empty list of Obstacle.")
-        if isinstance(self.mu, bool) or not isinstance(self.mu, (int, float)) \
-                or not np.isfinite(self.mu) or self.mu < 0:
-            raise ValueError(f"`mu` must be a finite number >= 0, got {self.mu!r}.")
-        self.mu = float(self.mu)
-        if self.method not in METHODS:
-            raise ValueError(f"`method` must be one of {METHODS}, got {self.method!r}.")
-        if self.tangent_plane not in TANGENT_PLANES:
-            raise ValueError(f"`tangent_plane` must be one of {TANGENT_PLANES}, "
-                             f"got {self.tangent_plane!r}.")
-        self.dt = _positive("dt", self.dt)
-        self.duration = _positive("duration", self.duration)
+        self.mu = real("mu", self.mu, nonnegative=True)
+        self.method = choice("method", self.method, METHODS)
+        self.tangent_plane = choice("tangent_plane", self.tangent_plane, TANGENT_PLANES)
+        self.dt = _positive("dt", self.dt, "s")
+        self.duration = _positive("duration", self.duration, "s")
         self.gravity = _vec("gravity", self.gravity)
+        if not isinstance(self.name, str):
+            raise TypeError(f"`name` must be a string, got {show(self.name)}.")
 
     @property
     def steps(self) -> int:
@@ -189,8 +181,7 @@ def symmetric_legs(count: int, radius: float, height: float, length: float, e0_l
     -------
     list of HingedStrut
     """
-    if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 1:
-        raise ValueError(f"`count` must be a positive integer, got {count!r}.")
+    count = integer("count", count, minimum=1)
     e0_local = _vec("e0_local", e0_local)
     en_local = _vec("en_local", en_local)
     legs = []
@@ -210,120 +201,56 @@ def symmetric_legs(count: int, radius: float, height: float, length: float, e0_l
 # ---------------------------------------------------------------------------
 # TOML
 # ---------------------------------------------------------------------------
-class _Table:
-    """A TOML table with its path, for error messages that name the field.
-
-    Subclasses may point ``docs`` at their own format page and set
-    ``finite_numbers = False`` to accept ±inf (e.g. unbounded limits).
-    """
-
-    docs = "docs/scenes.md"
-    finite_numbers = True
-
-    def __init__(self, data, path, source):
-        if not isinstance(data, dict):
-            raise ValueError(f"{source}: `{path}` must be a table, got {data!r}.")
-        self.data, self.path, self.source = data, path, source
-        self.used = set()
-
-    def _where(self, key):
-        return f"{self.path}.{key}" if self.path else key
-
-    def error(self, key, value, allowed):
-        return ValueError(f"{self.source}: field `{self._where(key)}` = {value!r} is invalid; "
-                          f"allowed: {allowed}.")
-
-    def _finite(self, value) -> bool:
-        value = np.asarray(value, dtype=float)
-        return bool(np.all(np.isfinite(value) if self.finite_numbers else ~np.isnan(value)))
-
-    def get(self, key, default=..., kind="number", size=None, choices=None, positive=False,
-            nonnegative=False):
-        self.used.add(key)
-        if key not in self.data:
-            if default is ...:
-                raise ValueError(f"{self.source}: missing field `{self._where(key)}` ({kind}).")
-            return default
-        value = self.data[key]
-        if kind == "number":
-            ok = not isinstance(value, bool) and isinstance(value, (int, float)) \
-                and self._finite(value)
-            if not ok or (positive and not value > 0) or (nonnegative and not value >= 0):
-                raise self.error(key, value, "a positive number" if positive else
-                                 "a non-negative number" if nonnegative else "a finite number")
-            return float(value)
-        if kind == "int":
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise self.error(key, value, "a positive integer")
-            return value
-        if kind == "vector":
-            ok = isinstance(value, list) and all(
-                isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
-            if not ok or (size is not None and len(value) != size) or not self._finite(value):
-                raise self.error(key, value, f"a list of {size} finite numbers")
-            return np.asarray(value, dtype=float)
-        if kind == "string":
-            if not isinstance(value, str) or (choices and value not in choices):
-                raise self.error(key, value, f"one of {list(choices)}" if choices else "a string")
-            return value
-        if kind == "bool":
-            if not isinstance(value, bool):
-                raise self.error(key, value, "true or false")
-            return value
-        if kind == "strings":
-            if isinstance(value, str):
-                return [value]
-            if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
-                raise self.error(key, value, "a string or a list of strings")
-            return value
-        if kind == "table":
-            return type(self)(value, self._where(key), self.source)
-        if kind == "tables":
-            if not isinstance(value, list):
-                raise self.error(key, value, "an array of tables ([[...]])")
-            return [type(self)(v, f"{self._where(key)}[{i}]", self.source)
-                    for i, v in enumerate(value)]
-        if kind == "any":
-            return value
-        raise AssertionError(kind)
-
-    def has(self, key):
-        return key in self.data
-
-    def finish(self):
-        unknown = sorted(set(self.data) - self.used)
-        if unknown:
-            where = self.path or "the top level"
-            raise ValueError(f"{self.source}: unknown field(s) {unknown} in `{where}`; "
-                             f"check the spelling against {self.docs}.")
-
+#: Kept for the study loaders that subclass it (the TOML checker now lives in
+#: ``symcushion.validation``).
+_Table = Table
 
 _CURVES = ("linear", "piecewise", "crushable")
+#: Every key of an element table, for "did you mean" on a misspelt one.
+_CURVE_KEYS = ("type", "smooth", "tunable", "unloading", "stiffness", "preload", "x", "f",
+               "crush_force", "plateau_slope")
 
 
-def _curve(table: _Table, allow_unloading=True) -> Curve:
+def _build(t: Table, build, *args, **kwargs):
+    """``build(*args, **kwargs)`` unless a field of ``t`` failed (then INVALID).
+
+    A ValueError/TypeError of the constructor is recorded with the table's path,
+    so that e.g. ``Linear(-5)`` from ``[legs.M_beta]`` names `legs.M_beta`.
+    """
+    if t.failed or any(a is INVALID for a in (*args, *kwargs.values())):
+        t.failed = True
+        return INVALID
+    try:
+        return build(*args, **kwargs)
+    except (ValueError, TypeError) as exc:
+        return t.fail(f"`{t.path or 'scene'}`: {exc}")
+
+
+def _curve(table, allow_unloading=True) -> Curve:
+    if table is INVALID:
+        return INVALID
     kind = table.get("type", kind="string", choices=_CURVES)
     options = dict(smooth=table.get("smooth", False, kind="bool"),
                    tunable=table.get("tunable", False, kind="bool"))
     if allow_unloading and table.has("unloading"):
         options["unloading"] = _curve(table.get("unloading", kind="table"), allow_unloading=False)
-    try:
-        if kind == "linear":
-            curve = Linear(table.get("stiffness"), table.get("preload", 0.0), **options)
-        elif kind == "piecewise":
-            curve = PiecewiseLinear(table.get("x", kind="vector"), table.get("f", kind="vector"),
-                                    **options)
-        else:
-            curve = Crushable(table.get("stiffness", positive=True),
-                              table.get("crush_force", positive=True),
-                              table.get("plateau_slope", 0.0), **options)
-    except (ValueError, TypeError) as exc:
-        raise ValueError(f"{table.source}: `{table.path}`: {exc}") from None
-    table.finish()
-    return curve
+    if kind == "linear":
+        build, args = Linear, (table.get("stiffness"), table.get("preload", 0.0))
+    elif kind == "piecewise":
+        build, args = PiecewiseLinear, (table.get("x", kind="vector"),
+                                        table.get("f", kind="vector"))
+    elif kind == "crushable":
+        build, args = Crushable, (table.get("stiffness", positive=True),
+                                  table.get("crush_force", positive=True),
+                                  table.get("plateau_slope", 0.0))
+    else:                       # a bad type, already reported: its fields are not unknown
+        build, args = None, ()
+        table.used.update(_CURVE_KEYS)
+    table.finish(known=_CURVE_KEYS)
+    return _build(table, build, *args, **options)
 
 
-def _elements(table: _Table):
+def _elements(table: Table):
     out = {}
     for name in ("S", "M_beta", "M_gamma"):
         if table.has(name):
@@ -333,135 +260,158 @@ def _elements(table: _Table):
     return out
 
 
-def _legs(top: _Table) -> list:
+_LEGS_KEYS = ("count", "radius", "height", "length", "e0", "en", "azimuth0", "axial_ratio",
+              "S", "M_beta", "M_gamma")
+
+
+def _legs(top: Table) -> list:
     legs = []
     if top.has("legs"):
         t = top.get("legs", kind="table")
-        els = _elements(t)
-        kwargs = {}
-        if t.has("axial_ratio"):
-            kwargs["axial_ratio"] = t.get("axial_ratio", positive=True)
-        try:
-            legs += symmetric_legs(
-                t.get("count", kind="int"), t.get("radius", positive=True), t.get("height"),
-                t.get("length", positive=True), t.get("e0", kind="vector", size=3),
-                t.get("en", kind="vector", size=3), azimuth0=t.get("azimuth0", 0.0),
-                **els, **kwargs)
-        except (ValueError, TypeError) as exc:
-            raise ValueError(f"{t.source}: `legs`: {exc}") from None
-        t.finish()
-    if top.has("leg"):
-        for t in top.get("leg", kind="tables"):
+        if t is not INVALID:
             els = _elements(t)
-            kwargs = {}
             if t.has("axial_ratio"):
-                kwargs["axial_ratio"] = t.get("axial_ratio", positive=True)
-            try:
-                legs.append(HingedStrut(t.get("hinge", kind="vector", size=3),
-                                        t.get("e0", kind="vector", size=3),
-                                        t.get("en", kind="vector", size=3),
-                                        t.get("length", positive=True), **els, **kwargs))
-            except (ValueError, TypeError) as exc:
-                raise ValueError(f"{t.source}: `{t.path}`: {exc}") from None
-            t.finish()
+                els["axial_ratio"] = t.get("axial_ratio", positive=True)
+            args = (t.get("count", kind="int"), t.get("radius", positive=True), t.get("height"),
+                    t.get("length", positive=True), t.get("e0", kind="vector", size=3),
+                    t.get("en", kind="vector", size=3))
+            els["azimuth0"] = t.get("azimuth0", 0.0)
+            t.finish(known=_LEGS_KEYS)
+            legs.append(_build(t, symmetric_legs, *args, **els))
+    if top.has("leg"):
+        tables = top.get("leg", kind="tables")
+        for t in ([] if tables is INVALID else tables):
+            els = _elements(t)
+            if t.has("axial_ratio"):
+                els["axial_ratio"] = t.get("axial_ratio", positive=True)
+            args = (t.get("hinge", kind="vector", size=3), t.get("e0", kind="vector", size=3),
+                    t.get("en", kind="vector", size=3), t.get("length", positive=True))
+            t.finish(known=("hinge", "e0", "en", "length", "axial_ratio", "S", "M_beta",
+                            "M_gamma"))
+            leg = _build(t, HingedStrut, *args, **els)
+            legs.append(leg if leg is INVALID else [leg])
+    top.used.update(("legs", "leg"))
     if not legs:
-        raise ValueError(f"{top.source}: no legs; give a `[legs]` table (a symmetric pattern) "
-                         "or `[[leg]]` tables.")
-    return legs
+        return top.fail("no legs; give a `[legs]` table (a symmetric pattern) or `[[leg]]` "
+                        "tables (docs/scenes.md).")
+    if any(group is INVALID for group in legs):
+        return INVALID
+    return [leg for group in legs for leg in group]
 
 
 _OBSTACLES = ("plane", "sphere", "implicit", "terrain")
+_OBSTACLE_KEYS = ("type", "point", "normal", "angle", "center", "radius", "phi", "preset",
+                  "depth", "rim", "x", "y", "heights")
 
 
-def _obstacle(t: _Table) -> Obstacle:
+def _obstacle(t: Table) -> Obstacle:
     kind = t.get("type", kind="string", choices=_OBSTACLES)
-    try:
-        if kind == "plane":
-            if t.has("angle"):
-                ob = Plane.inclined(t.get("angle"), t.get("point", (0.0, 0.0, 0.0), kind="vector",
-                                                          size=3))
-            else:
-                ob = Plane(t.get("point", (0.0, 0.0, 0.0), kind="vector", size=3),
-                           t.get("normal", (0.0, 0.0, 1.0), kind="vector", size=3))
-        elif kind == "sphere":
-            ob = Sphere(t.get("center", kind="vector", size=3), t.get("radius", positive=True))
-        elif kind == "implicit":
-            ob = _implicit_from_string(t.get("phi", kind="string"), t)
+    build, args = None, ()
+    if kind == "plane":
+        point = t.get("point", (0.0, 0.0, 0.0), kind="vector", size=3)
+        if t.has("angle"):
+            build, args = Plane.inclined, (t.get("angle"), point)
         else:
-            preset = t.get("preset", "grid", kind="string",
-                           choices=("grid", "crater", "slope_with_rocks"))
-            if preset == "crater":
-                ob = Terrain.crater(t.get("radius", 2.0, positive=True), t.get("depth", 0.3),
-                                    t.get("rim", 0.1))
-            elif preset == "slope_with_rocks":
-                ob = Terrain.slope_with_rocks(t.get("angle", 0.1))
-            else:
-                ob = Terrain(t.get("x", kind="vector"), t.get("y", kind="vector"),
-                             np.asarray(t.get("heights", kind="vector")).reshape(
-                                 len(t.data["x"]), len(t.data["y"])))
-    except (ValueError, TypeError) as exc:
-        if str(exc).startswith(t.source):
-            raise
-        raise ValueError(f"{t.source}: `{t.path}`: {exc}") from None
-    t.finish()
-    return ob
+            build, args = Plane, (point, t.get("normal", (0.0, 0.0, 1.0), kind="vector", size=3))
+    elif kind == "sphere":
+        build, args = Sphere, (t.get("center", kind="vector", size=3),
+                               t.get("radius", positive=True))
+    elif kind == "implicit":
+        text = t.get("phi", kind="string")
+        if text is not INVALID:
+            try:
+                build, args = ImplicitSurface, (Formula(text, t._where("phi")),)
+            except FormulaError as exc:
+                t.fail(str(exc))
+    elif kind == "terrain":
+        build, args = _terrain(t)
+    else:                       # a bad type, already reported: its fields are not unknown
+        t.used.update(_OBSTACLE_KEYS)
+    t.finish(known=_OBSTACLE_KEYS)
+    return _build(t, build, *args)
 
 
-def _implicit_from_string(text: str, t: _Table) -> ImplicitSurface:
-    """φ(x, y, z) from a formula in a TOML file, e.g. ``"x**2 + y**2 + z**2 - 1"``.
+def _terrain(t: Table):
+    preset = t.get("preset", "grid", kind="string", choices=("grid", "crater", "slope_with_rocks"))
+    if preset == "crater":
+        return Terrain.crater, (t.get("radius", 2.0, positive=True), t.get("depth", 0.3),
+                                t.get("rim", 0.1))
+    if preset == "slope_with_rocks":
+        return Terrain.slope_with_rocks, (t.get("angle", 0.1),)
+    x, y = t.get("x", kind="vector"), t.get("y", kind="vector")
+    heights = t.get("heights", kind="vector")
+    if any(v is INVALID for v in (x, y, heights)):
+        return None, ()
+    if heights.size != x.size * y.size:
+        t.fail(f"field `{t._where('heights')}` has {heights.size} values; it needs "
+               f"len(x)·len(y) = {x.size}·{y.size} = {x.size * y.size} (row-major: heights at "
+               "(x[0], y[0]), (x[0], y[1]), ...).")
+        return None, ()
+    return Terrain, (x, y, heights.reshape(x.size, y.size))
 
-    Only arithmetic and the CasADi functions named below may appear.
-    """
-    import ast
 
-    allowed_funcs = {"sin", "cos", "tan", "exp", "log", "sqrt", "tanh", "fabs"}
-    tree = ast.parse(text, mode="eval")
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Name) and node.id not in {"x", "y", "z"} | allowed_funcs:
-            raise t.error("phi", text, f"a formula in x, y, z using {sorted(allowed_funcs)}")
-        if isinstance(node, (ast.Attribute, ast.Subscript, ast.Lambda)):
-            raise t.error("phi", text, "plain arithmetic in x, y, z")
-    code = compile(tree, "<phi>", "eval")
+_SCENE_KEYS = ("name", "mu", "method", "dt", "duration", "gravity", "tangent_plane")
+_BODY_KEYS = ("mass", "inertia", "position", "attitude", "velocity", "angular_velocity")
 
-    import casadi as ca
 
-    def phi(p):
-        env = {name: getattr(ca, name) for name in allowed_funcs}
-        env.update(x=p[0], y=p[1], z=p[2])
-        return eval(code, {"__builtins__": {}}, env)  # noqa: S307 - names checked above
-
-    return ImplicitSurface(phi)
+def _body(top: Table):
+    b = top.get("body", kind="table")
+    if b is INVALID:
+        return INVALID
+    inertia = b.get("inertia", kind="vector", size=(3, 9))
+    if inertia is not INVALID and inertia.size == 9:
+        inertia = inertia.reshape(3, 3)
+    fields = dict(mass=b.get("mass", positive=True), inertia=inertia,
+                  position=b.get("position", (0.0, 0.0, 0.0), kind="vector", size=3),
+                  attitude=b.get("attitude", (1.0, 0.0, 0.0, 0.0), kind="vector", size=4),
+                  velocity=b.get("velocity", (0.0, 0.0, 0.0), kind="vector", size=3),
+                  angular_velocity=b.get("angular_velocity", (0.0, 0.0, 0.0), kind="vector",
+                                         size=3))
+    b.finish(known=_BODY_KEYS)
+    return _build(b, Body, **fields)
 
 
 def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
-    """Build a :class:`Scene` from the parsed contents of a scene TOML file."""
-    top = _Table(data, "", source)
-    s = top.get("scene", {}, kind="table") if top.has("scene") else _Table({}, "scene", source)
+    """Build a :class:`Scene` from the parsed contents of a scene TOML file.
+
+    Every field is checked before anything is built, and all problems are
+    reported together.
+
+    Raises
+    ------
+    SceneError
+        (a ValueError) listing every bad, missing or unknown field with its
+        path, its value and the fix.
+    """
+    problems = Problems(source)
+    if not isinstance(data, dict):
+        raise SceneError(source, [f"a scene must be a table of tables, got {show(data)}."])
+    top = Table(data, "", source, problems)
+    s = top.get("scene", kind="table") if top.has("scene") else Table({}, "scene", source,
+                                                                       problems)
     top.used.add("scene")
-    b = top.get("body", kind="table")
-    body = Body(mass=b.get("mass", positive=True),
-                inertia=np.asarray(b.get("inertia", kind="vector")).reshape(-1, 3)
-                if len(b.data.get("inertia", [])) == 9 else b.get("inertia", kind="vector", size=3),
-                position=b.get("position", (0.0, 0.0, 0.0), kind="vector", size=3),
-                attitude=b.get("attitude", (1.0, 0.0, 0.0, 0.0), kind="vector", size=4),
-                velocity=b.get("velocity", (0.0, 0.0, 0.0), kind="vector", size=3),
-                angular_velocity=b.get("angular_velocity", (0.0, 0.0, 0.0), kind="vector", size=3))
-    b.finish()
+    body = _body(top)
     legs = _legs(top)
-    obstacles = [_obstacle(t) for t in top.get("obstacle", kind="tables")]
-    scene = Scene(body=body, legs=legs, obstacles=obstacles,
-                  mu=s.get("mu", 0.0), method=s.get("method", "implicit", kind="string",
-                                                    choices=METHODS),
-                  dt=s.get("dt", 1e-3, positive=True), duration=s.get("duration", 1.0, positive=True),
-                  gravity=s.get("gravity", (0.0, 0.0, -9.81), kind="vector", size=3),
-                  name=s.get("name", Path(source).stem, kind="string"),
-                  tangent_plane=s.get("tangent_plane", "end", kind="string",
-                                      choices=TANGENT_PLANES))
-    if scene.mu < 0:
-        raise s.error("mu", scene.mu, "a number >= 0")
-    s.finish()
-    top.finish()
-    return scene
+    obstacles = top.get("obstacle", kind="tables")
+    obstacles = INVALID if obstacles is INVALID else [_obstacle(t) for t in obstacles]
+    if s is INVALID:
+        settings = INVALID
+    else:
+        settings = dict(mu=s.get("mu", 0.0, nonnegative=True),
+                        method=s.get("method", "implicit", kind="string", choices=METHODS),
+                        dt=s.get("dt", 1e-3, positive=True),
+                        duration=s.get("duration", 1.0, positive=True),
+                        gravity=s.get("gravity", (0.0, 0.0, -9.81), kind="vector", size=3),
+                        name=s.get("name", Path(source).stem, kind="string"),
+                        tangent_plane=s.get("tangent_plane", "end", kind="string",
+                                            choices=TANGENT_PLANES))
+        s.finish(known=_SCENE_KEYS)
+    top.finish(known=("scene", "body", "legs", "leg", "obstacle"))
+    problems.raise_if_any()
+    try:
+        return Scene(body=body, legs=legs, obstacles=obstacles, **settings)
+    except (ValueError, TypeError) as exc:
+        raise SceneError(source, [str(exc)]) from None
 
 
 def read_toml(path, what: str = "scene") -> dict:
@@ -476,5 +426,14 @@ def read_toml(path, what: str = "scene") -> dict:
 
 
 def load_scene(path) -> Scene:
-    """Load a scene from a TOML file (format: docs/scenes.md)."""
+    """Load a scene from a TOML file (format: docs/scenes.md).
+
+    Raises
+    ------
+    SceneError
+        Every problem of the file at once (see :func:`scene_from_dict`).
+    FileNotFoundError
+        The file does not exist.
+    """
+    path = validate_path("path", path)
     return scene_from_dict(read_toml(path, "scene"), str(path))

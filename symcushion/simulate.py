@@ -51,6 +51,7 @@ import numpy as np
 from .contact import contact_step_expr
 from .obstacles import closest_obstacle
 from .scene import Scene
+from .validation import real
 
 __all__ = ["StepModel", "Trajectory", "build_model", "simulate", "initial_state",
            "equilibrium_state", "stable_dt", "MODES", "STEP_CRITERION_EPS", "STABILITY_SAFETY",
@@ -586,14 +587,17 @@ def trajectory_from(model: StepModel, x0, X, Y, t) -> Trajectory:
         gamma_deflection=pad(legs_y[:, :, 13]), criterion=crit)
 
 
-def simulate(scene: Scene, *, model: StepModel | None = None, x0=None, p=None,
+def simulate(scene: Scene | str | Path, *, model: StepModel | None = None, x0=None, p=None,
              adaptive: bool = False, eps: float = STEP_CRITERION_EPS,
              stability: bool | float = False, progress: bool = False) -> Trajectory:
     """Simulate a scene.
 
+    The scene is checked first (``symcushion.checks.preflight``): a scene that
+    makes no physical sense raises ``SceneError``, a doubtful one warns.
+
     Parameters
     ----------
-    scene : Scene
+    scene : Scene, or str or Path of a scene TOML file
     model : StepModel, optional
         A model built before by :func:`build_model` (reused across calls).
     x0 : array_like, shape (nx,), optional
@@ -618,6 +622,10 @@ def simulate(scene: Scene, *, model: StepModel | None = None, x0=None, p=None,
     progress : bool
         Print a progress line (adaptive runs).
     """
+    from .checks import preflight
+    from .scene import load_scene
+
+    scene = load_scene(scene) if isinstance(scene, (str, Path)) else scene
     model = model or build_model(scene)
     x0 = initial_state(scene) if x0 is None else np.asarray(x0, dtype=float)
     if x0.shape != (model.nx,):
@@ -634,6 +642,10 @@ def simulate(scene: Scene, *, model: StepModel | None = None, x0=None, p=None,
     if stability and not adaptive:
         raise ValueError("`stability` needs `adaptive=True` (a fixed-step run uses "
                          "scene.dt; choose it below stable_dt(model, x0) instead).")
+    eps = real("eps", eps, positive=True)
+    # the adaptive driver cuts its last step at `duration` and may cap steps at stable_dt
+    preflight(scene, model, x0=x0, ignore=("dt_above_duration",) * bool(adaptive)
+              + ("dt_unstable",) * bool(stability))
     started = time.perf_counter()
     if not adaptive:
         steps = scene.steps

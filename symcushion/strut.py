@@ -40,6 +40,7 @@ import casadi as ca
 import numpy as np
 
 from .characteristics import Curve, Linear
+from .validation import direction, real, vector
 
 __all__ = ["HingedStrut", "RIGID_AXIAL_RATIO", "SINGULAR_ANGLE", "leg_geometry_expr"]
 
@@ -61,20 +62,7 @@ SINGULAR_ANGLE = np.deg2rad(1.0)
 
 
 def _vector(name, value, *, unit=False):
-    try:
-        arr = np.asarray(value, dtype=float).ravel()
-    except (TypeError, ValueError):
-        raise TypeError(f"`{name}` must be a 3-vector of numbers, got {value!r}.") from None
-    if arr.size != 3:
-        raise ValueError(f"`{name}` must have 3 components, got {arr.size} ({value!r}).")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"`{name}` must be finite, got {arr.tolist()}; give finite components.")
-    if unit:
-        norm = np.linalg.norm(arr)
-        if norm < 1e-12:
-            raise ValueError(f"`{name}` must be a non-zero direction, got {arr.tolist()}.")
-        arr = arr / norm
-    return arr
+    return direction(name, value) if unit else vector(name, value, (3,))
 
 
 def _unit(v):
@@ -142,11 +130,7 @@ class HingedStrut:
         self.hinge = _vector("hinge", hinge)
         self.e0 = _vector("e0", e0, unit=True)
         self.en = _vector("en", en, unit=True)
-        if isinstance(length, bool) or not isinstance(length, (int, float, np.floating, np.integer)):
-            raise TypeError(f"`length` must be a number (m), got {length!r}.")
-        if not np.isfinite(length) or length <= 0:
-            raise ValueError(f"`length` must be a positive finite length in m, got {length!r}.")
-        self.length = float(length)
+        self.length = real("length", length, positive=True, unit="m")
         cos0 = float(self.e0 @ self.en)
         angle = np.arccos(np.clip(abs(cos0), 0.0, 1.0))
         if angle < SINGULAR_ANGLE:
@@ -164,9 +148,7 @@ class HingedStrut:
                 raise TypeError(f"`{name}` must be a characteristic curve such as Linear(1e4), "
                                 f"got {curve!r}.")
         if S is None:
-            if not (isinstance(axial_ratio, (int, float)) and np.isfinite(axial_ratio)
-                    and axial_ratio > 0):
-                raise ValueError(f"`axial_ratio` must be a positive number, got {axial_ratio!r}.")
+            axial_ratio = real("axial_ratio", axial_ratio, positive=True)
             bend = [abs(c.slope(0.0)) for c in (M_beta, M_gamma) if c is not None]
             if not bend or max(bend) == 0:
                 raise ValueError("a rigid rod (`S=None`) needs a hinge element with non-zero "
@@ -307,6 +289,14 @@ class HingedStrut:
             ``v``: foot velocity relative to the hinge (3, m/s; selects the
             branches); ``p``: tunable parameters (``param_names``), empty when
             all curves are numeric.
+
+        Notes
+        -----
+        At the hinge (r = r_h) the strut direction e_S = (r − r_h)/L is 0/0 and
+        these raw Functions return NaN; they are inner kernels and do not
+        check. The Python boundary (:meth:`force`, :meth:`stiffness`) rejects
+        a foot within 1e-9 L₀ of the hinge with a ValueError, and
+        ``symcushion.checks.RunMonitor`` reports a non-finite state in a run.
         """
         if self._functions is None:
             r = ca.SX.sym("r", 3)

@@ -1,0 +1,187 @@
+"""Physical sanity checks: check_scene, preflight and the run monitor."""
+import json
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from symcushion.checks import (BODY_TOLERANCE, START_TOLERANCE, Finding, PhysicsWarning,
+                               RunMonitor, check_scene, preflight)
+from symcushion.monitor import DEFAULT_TOLERANCES
+from symcushion.scene import load_scene, scene_from_dict
+from symcushion.simulate import BODY_STATE, LEG_STATE, build_model, initial_state, simulate
+from symcushion.validation import SceneError
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENES = ("fig3.toml", "fig4.toml", "lander_slope.toml")
+
+
+def fig3(duration=0.1):
+    return load_scene(ROOT / "studies" / "fig3.toml").with_(method="implicit",
+                                                            duration=duration)
+
+
+def rollout(scene):
+    """States X (nx, steps) and outputs Y (ny, steps) of the scene's fixed-step run."""
+    model = build_model(scene)
+    X, Y = model.rollout(scene.steps)(initial_state(scene), np.zeros(model.np), scene.dt)
+    return model, np.asarray(X), np.asarray(Y), scene.dt * np.arange(1, scene.steps + 1)
+
+
+@pytest.mark.parametrize("name", SCENES)
+def test_study_scenes_are_clean(name):
+    assert check_scene(load_scene(ROOT / "studies" / name)) == []
+
+
+def test_finding_to_dict_is_json_ready_and_severity_checked():
+    f = Finding("foot_inside", "deep", "error", leg=2, value=0.1, field="body.position")
+    assert json.loads(json.dumps(f.to_dict())) == {
+        "kind": "foot_inside", "message": "deep", "severity": "error", "time": None, "leg": 2,
+        "value": 0.1, "field": "body.position"}
+    with pytest.raises(ValueError, match="`severity`"):
+        Finding("x", "y", "fatal")
+
+
+def test_feet_just_within_the_start_tolerance_pass():
+    scene = fig3()
+    assert check_scene(scene.with_(body=_moved(scene, -0.5 * START_TOLERANCE))) == []
+    below = check_scene(scene.with_(body=_moved(scene, -2 * START_TOLERANCE)))
+    assert {f.kind for f in below} == {"foot_inside"}
+
+
+def _moved(scene, dz):
+    from dataclasses import replace
+    return replace(scene.body, position=scene.body.position + np.array([0.0, 0.0, dz]))
+
+
+def test_body_far_inside_puts_hinges_inside_too():
+    found = check_scene(fig3().with_(body=_moved(fig3(), -0.75)))   # centre 7 cm deep
+    assert {"body_inside", "hinge_inside", "foot_inside"} <= {f.kind for f in found}
+
+
+def test_preflight_raises_on_errors_warns_on_warnings_and_strict_raises_both():
+    scene = fig3()
+    fast = scene.with_(body=_velocity(scene, -100.0))
+    with pytest.warns(PhysicsWarning, match="under-resolved"):
+        assert [f.kind for f in preflight(fast)] == ["fast_impact"]
+    with pytest.raises(SceneError, match="warning: .*under-resolved"):
+        preflight(fast, strict=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert preflight(scene) == []
+    assert preflight(fast.with_(dt=1e-4)) == []       # 1 cm per step: resolved
+    with pytest.raises(SceneError, match="dt_above|longer than"):
+        preflight(scene.with_(dt=0.2, duration=0.05))
+
+
+def _velocity(scene, vz):
+    from dataclasses import replace
+    return replace(scene.body, velocity=np.array([0.0, 0.0, vz]))
+
+
+def test_zero_gravity_scene_has_no_findings():
+    assert check_scene(fig3().with_(gravity=[0.0, 0.0, 0.0])) == []
+
+
+def test_rippled_surface_is_not_smooth():
+    data = {"scene": {"duration": 0.1}, "body": {"mass": 50.0, "inertia": [1.25] * 3,
+                                                 "position": [0, 0, 1.0]},
+            "legs": {"count": 4, "radius": 0.3, "height": -0.18, "length": 0.6,
+                     "e0": [0, 0, -1], "en": [-0.7, 0, -0.7],
+                     "M_beta": {"type": "linear", "stiffness": 1200.0},
+                     "M_gamma": {"type": "linear", "stiffness": 1200.0}},
+            # ripples of 6 µm wavelength: the central difference at h = 0.6 µm
+            # misses their slope by 6 %, far above the 1e-3 tolerance
+            "obstacle": [{"type": "implicit", "phi": "z - 1e-6*sin(1e6*x)"}]}
+    found = check_scene(scene_from_dict(data))
+    assert [(f.kind, f.severity) for f in found] == [("surface_not_smooth", "warning")]
+    data["obstacle"][0]["phi"] = "z - 0.1*sin(x)"
+    assert check_scene(scene_from_dict(data)) == []
+
+
+def test_monitor_is_silent_on_a_clean_run_fed_in_blocks():
+    scene = fig3(duration=0.3)
+    model, X, Y, t = rollout(scene)
+    monitor = RunMonitor(scene, model)
+    for block in np.array_split(np.arange(t.size), 7):
+        assert monitor.check(t[block], X[:, block], Y[:, block]) == []
+
+
+def test_monitor_reports_each_kind_once_per_leg_with_its_first_time():
+    scene = fig3()
+    model, X, Y, t = rollout(scene)
+    X = X.copy()
+    tol = DEFAULT_TOLERANCES["penetration"]
+    foot1 = BODY_STATE + LEG_STATE * 1
+    X[foot1 + 2, 40:] -= 3 * tol                      # foot 1 pushed 3 mm into the dome
+    monitor = RunMonitor(scene, model)
+    first = monitor.check(t[:60], X[:, :60], Y[:, :60])
+    assert [(f.kind, f.leg) for f in first] == [("penetration", 1)]
+    assert first[0].time == pytest.approx(t[40]) and first[0].severity == "warning"
+    assert monitor.check(t[60:], X[:, 60:], Y[:, 60:]) == []          # reported once
+
+
+def test_monitor_non_finite_body_inside_and_energy_growth():
+    scene = fig3()
+    model, X, Y, t = rollout(scene)
+    bad = X.copy()
+    bad[3:6, 10:] *= 3.0                               # kinetic energy × 9 from step 10
+    found = RunMonitor(scene, model).check(t, bad, Y)
+    assert [f.kind for f in found] == ["energy_growth"] and found[0].time == pytest.approx(t[10])
+    sunk = X.copy()
+    depth = 1.18 - 0.5 + BODY_TOLERANCE * 0.6 + 0.01   # centre 1 cm past the allowed depth
+    sunk[2, 20:] -= depth
+    kinds = {f.kind for f in RunMonitor(scene, model).check(t, sunk, Y)}
+    assert "body_inside" in kinds and "pass_through" in kinds
+    nan = X.copy()
+    nan[0, 30] = np.nan
+    found = RunMonitor(scene, model).check(t, nan, Y)
+    assert [(f.kind, f.severity) for f in found] == [("non_finite", "error")]
+    assert found[0].time == pytest.approx(t[30])
+
+
+def test_monitor_validates_its_arguments():
+    scene = fig3()
+    with pytest.raises(ValueError, match="did you mean 'penetration'"):
+        RunMonitor(scene, tolerances={"penetraton": 1e-3})
+    with pytest.raises(ValueError, match="positive"):
+        RunMonitor(scene, tolerances={"energy": -1.0})
+    monitor = RunMonitor(scene)
+    with pytest.raises(ValueError, match="`X` must have shape"):
+        monitor.check(np.zeros(3), np.zeros((5, 3)), np.zeros((2, 3)))
+
+
+def test_simulate_runs_preflight():
+    scene = fig3()
+    with pytest.raises(SceneError, match="body centre starts"):
+        simulate(scene.with_(body=_moved(scene, -1.0)))
+
+
+def test_negative_slope_away_from_rest_is_a_warning():
+    scene = fig3()
+    data = {"type": "piecewise", "x": [-1.0, 0.0, 0.5, 1.0], "f": [-1200.0, 0.0, 600.0, 300.0]}
+    from symcushion.scene import _curve
+    from symcushion.validation import Table
+    curve = _curve(Table(data, "legs.M_beta", "test"))
+    legs = [type(leg)(leg.hinge, leg.e0, leg.en, leg.length, M_beta=curve,
+                      M_gamma=leg.elements[-1].curve) for leg in scene.legs]
+    found = check_scene(scene.with_(legs=legs))
+    assert [(f.kind, f.severity) for f in found] == [("negative_slope", "warning")] * 4
+    assert found[0].value == pytest.approx(-600.0, rel=1e-12)     # (300 − 600)/0.5
+
+
+def test_dt_a_little_above_the_stable_step_is_a_warning():
+    found = check_scene(fig3().with_(dt=4e-3))
+    assert [(f.kind, f.severity) for f in found] == [("dt_unstable", "warning")]
+    assert 1 < found[0].value < 10
+
+
+def test_monitor_reports_a_foot_in_contact_off_the_terrain_grid():
+    from symcushion.obstacles import Terrain
+    scene = fig3().with_(obstacles=[Terrain.crater()])      # grid ±3 m
+    x = initial_state(scene)
+    foot0 = BODY_STATE
+    x[foot0:foot0 + 4] = [3.5, 0.0, 0.0, 1.0]                # in contact at x = 3.5 m
+    found = RunMonitor(scene).check(np.array([0.01]), x[:, None], np.zeros((1, 1)))
+    assert [(f.kind, f.leg, f.severity) for f in found] == [("off_terrain", 0, "error")]
