@@ -143,19 +143,29 @@ def vector(name: str, value, shape=(3,), *, finite=True, what="numbers") -> np.n
     return arr
 
 
+#: Smallest norm computed directly: below ~1e-154 the squares in the norm
+#: underflow, so such a vector is scaled by its largest component first.
+_NORM_UNDERFLOW = 1e-150
+
+
 def direction(name: str, value, size=3) -> np.ndarray:
     """``value`` normalised to unit length; a zero or non-finite vector is an error.
 
-    Scaled by its largest component before the norm, so that 1e300-sized
-    input normalises instead of overflowing to inf (and then to zero).
+    Where the norm overflows (1e300-sized components) or underflows, the
+    vector is first scaled by its largest component; otherwise it is divided
+    by its norm directly, bit for bit as before this check existed.
     """
     arr = vector(name, value, (size,))
     biggest = np.max(np.abs(arr))
     if not biggest > 0:
         raise ValueError(f"`{name}` must be a non-zero direction, got {arr.tolist()}; give "
                          f"{size} components of non-zero length.")
-    arr = arr / biggest
-    return arr / np.linalg.norm(arr)
+    with np.errstate(over="ignore", under="ignore"):
+        norm = np.linalg.norm(arr)
+    if not (np.isfinite(norm) and norm > _NORM_UNDERFLOW):
+        arr = arr / biggest
+        norm = np.linalg.norm(arr)
+    return arr / norm
 
 
 def _shape(shape) -> str:
