@@ -49,15 +49,14 @@ import casadi as ca
 import numpy as np
 
 from .contact import contact_step_expr
+from .layout import (BODY_OUT, BODY_STATE, LEG_OUT, LEG_STATE, MODES, quat_exp, quat_mul,
+                     quat_to_rot, quat_to_rot_np)
 from .obstacles import closest_obstacle
 from .scene import Scene
 
 __all__ = ["StepModel", "Trajectory", "build_model", "simulate", "initial_state",
            "equilibrium_state", "stable_dt", "MODES", "STEP_CRITERION_EPS", "STABILITY_SAFETY",
            "BODY_STATE", "LEG_STATE", "BODY_OUT", "LEG_OUT"]
-
-#: Codes of the ``mode`` output of each leg.
-MODES = {0: "free", 1: "stick", 2: "slip", 3: "lift-off"}
 
 #: ε of the paper's step criterion 1 − n_k·n_{k+1} < ε (§3): a normal may
 #: turn by about √(2ε) = 0.45° per step before the adaptive driver halves Δt.
@@ -73,47 +72,6 @@ MAX_HALVINGS = 10
 #: instability (ω Δt = 2). Stable is not accurate: an impact whose energy
 #: passes through that mode needs a smaller fraction (docs/hard-cases.md).
 STABILITY_SAFETY = 0.5
-
-# Layout of the state x and the per-step output y (public: the C API and the
-# optimiser index them). x = [body (BODY_STATE), leg 0 (LEG_STATE), leg 1, ...],
-# y = [body (BODY_OUT), leg 0 (LEG_OUT), leg 1, ...].
-#: Body state: position (3), velocity (3), quaternion w, x, y, z (4), angular velocity, body axes (3).
-BODY_STATE = 13
-#: Leg state: foot world position (3), contact flag (1), force on the foot, body frame (3).
-LEG_STATE = 7
-#: Body output: acceleration of the centre of mass, world (3).
-BODY_OUT = 3
-#: Leg output: contact, mode, P world (3), normal (3), e_S world (3), δ_S, β, γ − γ₀.
-LEG_OUT = 14
-
-
-# ---------------------------------------------------------------------------
-# rigid-body helpers (CasADi)
-# ---------------------------------------------------------------------------
-def quat_to_rot(q):
-    """Rotation matrix (body → world) of a unit quaternion (w, x, y, z)."""
-    w, x, y, z = q[0], q[1], q[2], q[3]
-    return ca.vertcat(
-        ca.horzcat(1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)),
-        ca.horzcat(2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)),
-        ca.horzcat(2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)))
-
-
-def quat_mul(a, b):
-    """Hamilton product a ⊗ b."""
-    aw, av = a[0], a[1:4]
-    bw, bv = b[0], b[1:4]
-    return ca.vertcat(aw * bw - ca.dot(av, bv), aw * bv + bw * av + ca.cross(av, bv))
-
-
-def quat_exp(theta):
-    """Quaternion of the rotation vector θ (rad), safe at θ = 0."""
-    angle2 = ca.dot(theta, theta)
-    angle = ca.sqrt(ca.if_else(angle2 > 0, angle2, 1.0))
-    # sin(a/2)/a with its Taylor series where a is tiny (no 0/0 in either branch)
-    half_sinc = ca.if_else(angle2 > 1e-16, ca.sin(angle / 2) / angle, 0.5 - angle2 / 48)
-    return ca.vertcat(ca.if_else(angle2 > 1e-16, ca.cos(angle / 2), 1 - angle2 / 8),
-                      half_sinc * theta)
 
 
 # ---------------------------------------------------------------------------
@@ -321,7 +279,8 @@ def initial_state(scene: Scene) -> np.ndarray:
 
 
 def _rot_np(q):
-    return np.asarray(ca.Function("R", [], [quat_to_rot(ca.DM(q))])()["o0"], dtype=float)
+    """Rotation matrix of the quaternion ``q`` as given (not renormalised)."""
+    return quat_to_rot_np(q, normalise=False)
 
 
 def _drop_point(obstacles, free, direction, iterations=20):

@@ -38,7 +38,8 @@ import numpy as np
 
 from ..obstacles import ImplicitSurface, Plane, Sphere
 from ..scene import Scene
-from ..simulate import BODY_STATE, LEG_STATE, quat_mul, quat_to_rot
+from ..layout import quat_mul, quat_to_rot
+from ..simulate import BODY_STATE, LEG_STATE
 from .run import (PeerRun, check_scene, leg_kinematics, nonnegative, output_times, positive,
                   quat_to_rot_np, state_vector)
 
