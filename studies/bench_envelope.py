@@ -35,8 +35,9 @@ import casadi as ca
 import numpy as np
 
 from symcushion import report
-from symcushion.envelope import CLASSES, CONFIDENCE, build_envelope, classify, evaluate, \
-    initial_states, load_study, run_batch, run_envelope, sample_conditions, wilson_interval
+from symcushion.envelope import (CLASSES, CONFIDENCE, build_envelope, case_params, classify,
+                                 evaluate, initial_states, load_study, run_batch, run_envelope,
+                                 sample_conditions, wilson_interval)
 
 ROOT = Path(__file__).resolve().parent.parent
 STUDY = ROOT / "studies" / "envelope_lander.toml"
@@ -206,13 +207,13 @@ def _run_variant(base, variant, cases: dict, marginal: dict, threads: int) -> tu
     started = time.perf_counter()
     library = build_envelope(study.scene, CACHE, progress=True)
     build = time.perf_counter() - started
-    p = np.concatenate([leg.param_values for leg in study.scene.legs])
     out = []
     for k, conditions in enumerate((cases, marginal)):
         x0, gravity = initial_states(study, conditions)
+        p = case_params(study.scene, conditions["mu"], gravity)
         load = os.getloadavg()[0]
         cpu, wall = _cpu(), time.perf_counter()
-        x_end, summary = run_batch(library, x0, gravity, p, dt, threads if k == 0 else 1)
+        x_end, summary = run_batch(library, x0, p, dt, threads if k == 0 else 1)
         cpu, wall = _cpu() - cpu, time.perf_counter() - wall
         r = classify(summary, x_end, gravity, x0, study.limits, len(study.scene.legs))
         r.update(cpu_per_case=cpu / x0.shape[1], wall=wall, load=load, build=build)

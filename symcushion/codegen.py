@@ -41,6 +41,7 @@ import casadi as ca
 import numpy as np
 
 from .contact import METHODS, contact_step
+from .layout import default_p, param_layout
 from .scene import Scene, load_scene
 from .simulate import StepModel, build_model, initial_state
 
@@ -142,7 +143,10 @@ _TOUCHDOWN_ARGS = {
          "axes (3, rad/s); then per leg the foot's world\n"
          "position (3, m), contact flag (1), force on the\n"
          "foot in body axes (3, N)",
-    "p": "leg parameters (manifest 'param_names'),\nmay be empty",
+    "p": "parameters (manifest 'param_names'): the legs'\n"
+         "curve parameters, then mu (friction scenes),\n"
+         "gravity (3, m/s^2), mass (kg), inertia xx, yy,\n"
+         "zz, xy, xz, yz (kg m^2)",
     "dt": "time step (s)",
     "x_next": "state after the step",
     "y": "acceleration of the centre of mass (3, m/s^2);\n"
@@ -259,11 +263,6 @@ def _c_doubles(values) -> str:
     vals = [repr(float(v)) for v in np.ravel(values)] or ["0.0"]
     rows = [", ".join(vals[i:i + 4]) for i in range(0, len(vals), 4)]
     return "{\n    " + ",\n    ".join(rows) + "\n}"
-
-
-def _default_params(scene: Scene) -> np.ndarray:
-    vals = [leg.param_values for leg in scene.legs]
-    return np.concatenate(vals) if vals else np.zeros(0)
 
 
 def _state_names(n_legs: int) -> list:
@@ -415,7 +414,7 @@ def _write_scene_data(out_dir: Path, scene: Scene, model: StepModel, steps: int)
         raise RuntimeError(f"state layout changed: {model.nx} states, {len(names)} names; "
                            "update symcushion.codegen._LEG_STATE_NAMES.")
     x0 = initial_state(scene)
-    p = _default_params(scene)
+    p = default_p(scene)
     name_rows = ",\n    ".join(_c_string(n) for n in names)
     text = f"""/*
  * scene_data.h -- scene '{scene.name}' for the standalone program touchdown (main.c).
@@ -740,5 +739,5 @@ def compiled_model(scene, out_dir, *, steps: int | None = None,
     info = json.loads((gen.out_dir / MANIFEST).read_text())
     return CompiledModel(step=fns["touchdown_step"], scene=scene, nx=info["nx"], ny=info["ny"],
                          np=info["np"], param_names=tuple(info["param_names"]),
-                         library=gen.library, compiled_steps=info["steps"],
+                         params=param_layout(scene), library=gen.library, compiled_steps=info["steps"],
                          _compiled_rollout=fns["touchdown_rollout"])

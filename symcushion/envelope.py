@@ -1,6 +1,6 @@
 """Touchdown stability envelope: Monte Carlo over touchdown conditions.
 
-This module owns the envelope study (issue 9): sampling touchdown conditions
+This module owns the envelope study: sampling touchdown conditions
 (vertical and horizontal speed, heading, slope, yaw, attitude error) by a
 seeded scrambled Sobol sequence or pseudo-random numbers, running each case
 through one compiled C Function on all cores (``casadi.Function.map(...,
@@ -9,22 +9,16 @@ against limits (tip-over, stroke, hinge deflection, deceleration, rebound)
 with its margins, and writing cases, summary and plots.
 
 It derives no physics: every case is the scene's ``touchdown_step``
-(``symcushion.simulate``) rolled out by ``fold``. Two things enter at run time
-without rebuilding the step:
+(``symcushion.simulate``) rolled out by ``fold``, with the case's conditions
+in its inputs, so one compiled Function serves the whole study:
 
 * **the slope**, by simulating in the *slope frame*, where the ground stays
-  the plane z = 0 of the scene and gravity is rotated by the slope angle.
-  The scene's gravity is a constant inside ``touchdown_step``; a uniform
-  extra acceleration Δg = g_slope − g_scene is added as one half kick before
-  and one after each step, which is exactly velocity Verlet with g_slope
-  (the step's own half kicks use g_scene, its positions depend on the
-  velocity only through the first half kick);
+  the plane z = 0 of the scene and gravity, an entry of the step's parameter
+  vector ``p``, is rotated by the slope angle;
+* **μ**, another entry of ``p``, sampled continuously or from levels (cases
+  with μ = 0 exactly run on the scene's frictionless graph, a second library);
 * **the initial state**: attitude, velocity and a position with the lowest
   foot at ``clearance`` above the ground.
-
-μ is compiled into the step (``build_model`` builds the friction code from
-``scene.mu``), so a study has one μ per compiled Function: a fixed value, or
-a few ``levels``, each compiled once (docs/envelope.md, "Friction").
 
 Per case the compiled Function returns the final state and a short vector of
 running extrema (strokes, deflections, peak deceleration, tilt, rebound
@@ -55,12 +49,16 @@ import numpy as np
 from .codegen import CFLAGS, CODEGEN_OPTIONS, WARNINGS, find_compiler
 from .obstacles import Plane
 from .scene import Scene, _Table, read_toml, scene_from_dict
-from .simulate import BODY_OUT, BODY_STATE, LEG_OUT, LEG_STATE, StepModel, build_model
+from .layout import (BODY_OUT, BODY_STATE, LEG_OUT, LEG_STATE, body_axis_np, default_p,
+                     param_layout, quat_from_axis_angle_np, quat_mul_np, quat_to_rot_np,
+                     state_layout)
+from .measures import measures_function
+from .simulate import StepModel, build_model
 
 __all__ = ["VARIABLES", "SUMMARY", "CLASSES", "Range", "Limits", "EnvelopeStudy",
            "EnvelopeResult", "load_study", "study_from_dict", "sample_unit", "sobol",
            "sample_conditions", "initial_states", "envelope_function", "build_envelope",
-           "run_batch", "evaluate", "classify", "wilson_interval", "run_envelope", "plot_envelope"]
+           "run_batch", "case_params", "evaluate", "classify", "wilson_interval", "run_envelope", "plot_envelope"]
 
 #: Sampled touchdown conditions, in the order they take dimensions of the
 #: sequence (only those given as a range or distribution take one). Angles in
@@ -95,6 +93,9 @@ SUMMARY = ("max_stroke", "max_beta", "max_gamma", "peak_decel", "peak_decel_raw"
            "max_one_minus_cos_tilt", "touched", "first_contact_time", "rebound_speed",
            "airborne_time", "min_height")
 _S = {name: i for i, name in enumerate(SUMMARY)}
+#: Axis of the slope frame's ground normal: the ground is its plane z = 0, so the
+#: body's height above the ground is its z coordinate.
+_NORMAL_AXIS = 2
 
 #: Time constant of the first-order low-pass filter on the specific force
 #: whose peak is checked against ``limits.deceleration`` (s), like the filter
@@ -472,11 +473,6 @@ def _range(t: _Fields, name: str) -> Range:
 def _check_range(name: str, r: Range, source: str):
     lo, hi = r.bounds()
     problem = None
-    if name == "mu" and r.kind in ("uniform", "normal"):
-        raise ValueError(f"{source}: field `ranges.mu` = {r.describe()} cannot be sampled "
-                         "continuously: μ is compiled into the step (one build per value); "
-                         "give a number or `{levels = [0.3, 0.5, 0.7]}` (docs/envelope.md, "
-                         "\"Friction\").")
     if name in ("vertical_speed", "horizontal_speed", "mu") and lo < 0:
         problem = ("must not be negative" + ("; truncate the normal distribution with "
                                              "`low = 0`" if r.kind == "normal" else ""))
@@ -572,29 +568,6 @@ def load_study(path) -> EnvelopeStudy:
 # ---------------------------------------------------------------------------
 # initial states in the slope frame
 # ---------------------------------------------------------------------------
-def _quat_axis(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
-    """Quaternions (n, 4) of rotations by ``angle`` (n,) about unit ``axis`` (n, 3)."""
-    half = 0.5 * np.asarray(angle, dtype=float)
-    return np.column_stack([np.cos(half), np.sin(half)[:, None] * axis])
-
-
-def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton products a ⊗ b, row by row (n, 4)."""
-    aw, av = a[:, :1], a[:, 1:]
-    bw, bv = b[:, :1], b[:, 1:]
-    return np.column_stack([aw * bw - np.sum(av * bv, axis=1, keepdims=True),
-                            aw * bv + bw * av + np.cross(av, bv)])
-
-
-def _quat_rot(q: np.ndarray) -> np.ndarray:
-    """Rotation matrices (n, 3, 3), body → world, of unit quaternions (n, 4)."""
-    w, x, y, z = q.T
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)], 1)
-
-
 def initial_states(study: EnvelopeStudy, conditions: dict) -> tuple:
     """Initial states and gravity vectors of the cases, in the slope frame.
 
@@ -627,27 +600,28 @@ def initial_states(study: EnvelopeStudy, conditions: dict) -> tuple:
     v_world = np.column_stack([c["horizontal_speed"] * np.cos(psi),
                                c["horizontal_speed"] * np.sin(psi), -c["vertical_speed"]])
     q_base = np.tile(scene.body.attitude, (n, 1))
-    q_yaw = _quat_axis(np.column_stack([zeros, zeros, ones]), yaw)
-    q_tilt = _quat_axis(np.column_stack([-np.sin(azim), np.cos(azim), zeros]), tilt)
-    q_world = _quat_mul(q_tilt, _quat_mul(q_yaw, q_base))
-    q_slope = _quat_axis(np.column_stack([zeros, ones, zeros]), -theta)   # R_y(−θ)
-    q = _quat_mul(q_slope, q_world)
+    q_yaw = quat_from_axis_angle_np(np.column_stack([zeros, zeros, ones]), yaw)
+    q_tilt = quat_from_axis_angle_np(np.column_stack([-np.sin(azim), np.cos(azim), zeros]), tilt)
+    q_world = quat_mul_np(q_tilt, quat_mul_np(q_yaw, q_base))
+    q_slope = quat_from_axis_angle_np(np.column_stack([zeros, ones, zeros]), -theta)   # R_y(−θ)
+    q = quat_mul_np(q_slope, q_world)
     q /= np.linalg.norm(q, axis=1, keepdims=True)
-    R_slope = _quat_rot(q_slope)
+    R_slope = quat_to_rot_np(q_slope, normalise=False)
     vel = np.einsum("nij,nj->ni", R_slope, v_world)
     gravity = g * np.column_stack([np.sin(theta), zeros, -np.cos(theta)])
 
-    R = _quat_rot(q)
+    R = quat_to_rot_np(q, normalise=False)
     rest = np.array([leg.rest_foot for leg in scene.legs])                 # (legs, 3)
     feet_rel = np.einsum("nij,lj->nli", R, rest)                          # (n, legs, 3)
     ground = float(scene.obstacles[0].point[2])
     height = ground + study.clearance - feet_rel[:, :, 2].min(axis=1)
     pos = np.column_stack([zeros, zeros, height])
     omega = np.tile(scene.body.angular_velocity, (n, 1))
-    parts = [pos, vel, q, omega]
-    for j in range(len(scene.legs)):
-        parts += [pos + feet_rel[:, j], zeros[:, None], np.zeros((n, 3))]
-    x0 = np.column_stack(parts).T
+    legs = range(len(scene.legs))
+    x0 = state_layout(len(scene.legs)).pack_columns(
+        n, position=pos.T, velocity=vel.T, attitude=q.T, angular_velocity=omega.T,
+        foot=[(pos + feet_rel[:, j]).T for j in legs], contact=[zeros for _ in legs],
+        force_body=[np.zeros((3, n)) for _ in legs])
     return np.ascontiguousarray(x0), np.ascontiguousarray(gravity.T)
 
 
@@ -655,13 +629,13 @@ def initial_states(study: EnvelopeStudy, conditions: dict) -> tuple:
 # the compiled case Function
 # ---------------------------------------------------------------------------
 def envelope_function(model: StepModel, steps: int | None = None) -> ca.Function:
-    """``envelope_case(x0, p, dt, gravity) -> (x_end, summary)``: one whole touchdown.
+    """``envelope_case(x0, p, dt) -> (x_end, summary)``: one whole touchdown.
 
-    The scene's ``touchdown_step`` with gravity replaced by the input
-    ``gravity`` (slope frame): velocity Verlet with g_in is the step with the
-    scene's g plus a half kick (h/2)(g_in − g_scene) before and after it. The
-    running extrema of :data:`SUMMARY` are carried as extra states, and
-    ``fold`` keeps only the final state, so one case returns nx + 11 numbers.
+    The scene's ``touchdown_step`` rolled out by ``fold``, with the case's
+    gravity (slope frame) and μ in its parameter vector ``p``. The running
+    extrema of :data:`SUMMARY`, taken from ``touchdown_measures``
+    (:mod:`symcushion.measures`), are carried as extra states, and ``fold``
+    keeps only the final state, so one case returns nx + 11 numbers.
 
     Parameters
     ----------
@@ -673,38 +647,23 @@ def envelope_function(model: StepModel, steps: int | None = None) -> ca.Function
     scene = model.scene
     steps = scene.steps if steps is None else int(steps)
     nx, ns = model.nx, len(SUMMARY)
+    xl = state_layout(model.n_legs)
     x = ca.SX.sym("x", nx)
     s = ca.SX.sym("s", ns)
     a_f = ca.SX.sym("a_filtered", 3)                    # low-pass filtered specific force
     p = ca.SX.sym("p", model.np)
     h = ca.SX.sym("dt")
-    g_in = ca.SX.sym("gravity", 3)
-    g_scene = ca.DM(scene.gravity)
-    up = -g_in / ca.norm_2(g_in)
 
-    kick = h / 2 * (g_in - g_scene)                     # extra half kick of velocity Verlet
-    x_pre = ca.vertcat(x[0:3], x[3:6] + kick, x[6:])
-    x_step, y = model.step(x_pre, p if model.np else ca.SX(0, 1), h)
-    x1 = ca.vertcat(x_step[0:3], x_step[3:6] + kick, x_step[6:])
-
-    legs_y = [y[BODY_OUT + LEG_OUT * j: BODY_OUT + LEG_OUT * (j + 1)]
-              for j in range(model.n_legs)]
-    contact_any = 0
-    stroke = beta = gamma = 0
-    for leg, ly in zip(scene.legs, legs_y):
-        contact_any = ca.fmax(contact_any, ly[0])
-        if not leg.rigid:
-            stroke = ca.fmax(stroke, ca.fabs(ly[11]))
-        beta = ca.fmax(beta, ca.fabs(ly[12]))
-        gamma = ca.fmax(gamma, ca.fabs(ly[13]))
-    specific_force = y[0:3] - g_scene                   # R F / m: legs' force over mass
+    x1, y = model.step(x, p, h)
+    m = measures_function(scene).call(dict(x=x1, y=y, p=p))
+    axial = [j for j, leg in enumerate(scene.legs) if not leg.rigid]
+    contact_any = ca.mmax(m["contact"]) if model.n_legs else 0
+    stroke = ca.mmax(ca.fabs(m["stroke"][axial])) if axial else 0
+    beta = ca.mmax(ca.fabs(m["beta"])) if model.n_legs else 0
+    gamma = ca.mmax(ca.fabs(m["gamma_deflection"])) if model.n_legs else 0
+    specific_force = m["specific_force"]
     # first-order low-pass, exact for a force held over the step (any dt)
     a_f1 = a_f + (1 - ca.exp(-h / DECEL_FILTER_TIME)) * (specific_force - a_f)
-    quat = x1[6:10]
-    body_z = ca.vertcat(2 * (quat[1] * quat[3] + quat[0] * quat[2]),
-                        2 * (quat[2] * quat[3] - quat[0] * quat[1]),
-                        1 - 2 * (quat[1] ** 2 + quat[2] ** 2))
-    one_minus_cos = 1 - ca.dot(up, body_z)
     touched_before = s[_S["touched"]]
     touched = ca.fmax(touched_before, contact_any)
     # the step index is not in the state: the first contact time is accumulated as
@@ -713,39 +672,31 @@ def envelope_function(model: StepModel, steps: int | None = None) -> ca.Function
                             s[_S["first_contact_time"]])
     airborne = ca.if_else(ca.logic_and(touched > 0.5, contact_any < 0.5),
                           s[_S["airborne_time"]] + h, s[_S["airborne_time"]])
-    rebound = ca.if_else(touched > 0.5, ca.fmax(s[_S["rebound_speed"]], ca.dot(up, x1[3:6])),
+    rebound = ca.if_else(touched > 0.5, ca.fmax(s[_S["rebound_speed"]], m["upward_speed"]),
                          s[_S["rebound_speed"]])
+    height = xl.get(x1, "position")[_NORMAL_AXIS]
     s1 = ca.vertcat(ca.fmax(s[_S["max_stroke"]], stroke), ca.fmax(s[_S["max_beta"]], beta),
                     ca.fmax(s[_S["max_gamma"]], gamma),
                     ca.fmax(s[_S["peak_decel"]], ca.norm_2(a_f1)),
                     ca.fmax(s[_S["peak_decel_raw"]], ca.norm_2(specific_force)),
-                    ca.fmax(s[_S["max_one_minus_cos_tilt"]], one_minus_cos), touched,
-                    first_time, rebound, airborne, ca.fmin(s[_S["min_height"]], x1[2]))
+                    ca.fmax(s[_S["max_one_minus_cos_tilt"]], m["one_minus_cos_tilt"]), touched,
+                    first_time, rebound, airborne, ca.fmin(s[_S["min_height"]], height))
     x0 = ca.MX.sym("x0", nx)
     pm = ca.MX.sym("p", model.np)
     hm = ca.MX.sym("dt")
-    gm = ca.MX.sym("gravity", 3)
-    s0 = ca.vertcat(ca.MX.zeros(_S["min_height"]), x0[2], ca.MX.zeros(3))
+    s0 = ca.vertcat(ca.MX.zeros(_S["min_height"]), xl.get(x0, "position")[_NORMAL_AXIS],
+                    ca.MX.zeros(3))
     xs, xs1 = ca.vertcat(x, s, a_f), ca.vertcat(x1, s1, a_f1)
-    if model.np > 0:
-        step = ca.Function("envelope_step", [xs, p, h, g_in], [xs1],
-                           ["xs", "p", "dt", "gravity"], ["xs_next"])
-        xs_end = step.fold(steps)(ca.vertcat(x0, s0), pm, hm, gm)
-    else:
-        # CasADi 3.8 writes the repetition of an empty p inside fold as
-        # casadi_copy(0, 0, 0+ i*0), an integer passed as a pointer (docs/codegen.md):
-        # without parameters the step is built without p
-        step = ca.Function("envelope_step", [xs, h, g_in], [xs1],
-                           ["xs", "dt", "gravity"], ["xs_next"])
-        xs_end = step.fold(steps)(ca.vertcat(x0, s0), hm, gm)
+    step = ca.Function("envelope_step", [xs, p, h], [xs1], ["xs", "p", "dt"], ["xs_next"])
+    xs_end = step.fold(steps)(ca.vertcat(x0, s0), pm, hm)
     summary = xs_end[nx:nx + ns]
     # cases that never touch: first contact time −1 instead of the whole duration
     summary = ca.vertcat(summary[:_S["first_contact_time"]],
                          ca.if_else(summary[_S["touched"]] > 0.5,
                                     summary[_S["first_contact_time"]], -1),
                          summary[_S["first_contact_time"] + 1:])
-    return ca.Function("envelope_case", [x0, pm, hm, gm], [xs_end[:nx], summary],
-                       ["x0", "p", "dt", "gravity"], ["x_end", "summary"])
+    return ca.Function("envelope_case", [x0, pm, hm], [xs_end[:nx], summary],
+                       ["x0", "p", "dt"], ["x_end", "summary"])
 
 
 #: Default folder of the compiled case Functions, one sub-folder per source
@@ -803,7 +754,8 @@ def build_envelope(scene: Scene, cache_dir=None, *, steps: int | None = None,
     (folder / _SOURCE).write_bytes(source)
     if progress:
         print(f"compiling envelope_case for '{scene.name}' (method {scene.method}, "
-              f"μ = {scene.mu:g}, {scene.steps if steps is None else steps} steps) in "
+              f"{'μ an input' if scene.mu > 0 else 'frictionless'}, "
+              f"{scene.steps if steps is None else steps} steps) in "
               f"{folder} ...", file=sys.stderr, flush=True)
     partial = folder / f".{_LIBRARY}.{os.getpid()}"
     argv = [cc, *flags, "-shared", str(folder / _SOURCE), "-o", str(partial), "-lm"]
@@ -815,7 +767,7 @@ def build_envelope(scene: Scene, cache_dir=None, *, steps: int | None = None,
         print(f"gcc printed, compiling {_SOURCE}:\n{done.stderr}", file=sys.stderr)
     os.replace(partial, library)                 # atomic: concurrent builders agree
     (folder / _MANIFEST).write_text(json.dumps({
-        "scene": scene.name, "method": scene.method, "mu": scene.mu, "dt": scene.dt,
+        "scene": scene.name, "method": scene.method, "friction": scene.mu > 0, "dt": scene.dt,
         "steps": scene.steps if steps is None else steps, "nx": model.nx, "np": model.np,
         "summary": list(SUMMARY), "instructions": model.step.n_instructions(),
         "cflags": flags, "compiler": cc, "fingerprint": digest, "casadi": ca.__version__,
@@ -842,7 +794,7 @@ def _case_function(library) -> ca.Function:
     return _LOADED[key]
 
 
-def run_batch(library, x0, gravity, p, dt, threads: int = 1) -> tuple:
+def run_batch(library, x0, p, dt, threads: int = 1) -> tuple:
     """Run a batch of cases through a compiled ``envelope_case``.
 
     Parameters
@@ -850,9 +802,9 @@ def run_batch(library, x0, gravity, p, dt, threads: int = 1) -> tuple:
     library : str or Path
         From :func:`build_envelope`.
     x0 : array_like, shape (nx, B)
-    gravity : array_like, shape (3, B)
-    p : array_like, shape (np,)
-        Leg parameters (the scene's defaults).
+    p : array_like, shape (np, B)
+        Each case's step parameters (:func:`case_params`: the legs' curves,
+        μ, the slope frame's gravity, mass, inertia).
     dt : float
     threads : int
         Threads of ``map(B, "thread", threads)``; 1 runs serially.
@@ -864,20 +816,45 @@ def run_batch(library, x0, gravity, p, dt, threads: int = 1) -> tuple:
     """
     f = _case_function(library)
     x0 = np.asarray(x0, dtype=float)
-    gravity = np.asarray(gravity, dtype=float)
+    p = np.asarray(p, dtype=float)
     count = x0.shape[1]
-    if x0.shape[0] != f.size1_in(0) or gravity.shape != (3, count):
-        raise ValueError(f"`x0` must be ({f.size1_in(0)}, B) and `gravity` (3, B), got "
-                         f"{x0.shape} and {gravity.shape}.")
+    if x0.shape[0] != f.size1_in(0) or p.shape != (f.size1_in(1), count):
+        raise ValueError(f"`x0` must be ({f.size1_in(0)}, B) and `p` ({f.size1_in(1)}, B), got "
+                         f"{x0.shape} and {p.shape}.")
     threads = max(1, min(int(threads), count))
     key = (id(f), count, threads)
     if key not in _MAPS:
         _MAPS[key] = f.map(count, "thread", threads) if threads > 1 else f.map(count, "serial")
-    x_end, summary = _MAPS[key](x0, np.asarray(p, dtype=float), float(dt), gravity)
+    x_end, summary = _MAPS[key](x0, p, float(dt))
     return np.asarray(x_end, dtype=float), np.asarray(summary, dtype=float)
 
 
-def _dask_batch(library, scene_data, source, cache_dir, x0, gravity, p, dt):
+def case_params(scene: Scene, mu: np.ndarray, gravity: np.ndarray) -> np.ndarray:
+    """Step parameters of each case (np, n): the scene's, with the cases' μ and gravity.
+
+    Parameters
+    ----------
+    scene : Scene
+        The compiled scene; a frictionless one (μ = 0) has no μ entry, and
+        then every case's μ must be 0.
+    mu : array_like, shape (n,)
+    gravity : array_like, shape (3, n)
+        Gravity in the slope frame (m/s²).
+    """
+    params = param_layout(scene)
+    mu = np.asarray(mu, dtype=float)
+    gravity = np.asarray(gravity, dtype=float)
+    p = np.tile(default_p(scene)[:, None], (1, gravity.shape[1]))
+    p[params.slice("gravity")] = gravity
+    if params.friction:
+        p[params.slice("mu")] = mu
+    elif np.any(mu != 0):
+        raise ValueError(f"`mu` has values up to {np.max(mu)!r} but the scene is frictionless "
+                         "(μ = 0 builds no friction paths); build it with μ > 0.")
+    return p
+
+
+def _dask_batch(library, scene_data, source, cache_dir, x0, p, dt):
     """A Dask task: one batch; builds the library on the worker if it cannot see it."""
     if not Path(library).is_file():
         if scene_data is None:
@@ -886,7 +863,7 @@ def _dask_batch(library, scene_data, source, cache_dir, x0, gravity, p, dt):
                                     "load the study from a file (docs/envelope.md).")
         scene = scene_from_dict(scene_data, source)
         library = build_envelope(scene, cache_dir)
-    return run_batch(library, x0, gravity, p, dt, threads=1)
+    return run_batch(library, x0, p, dt, threads=1)
 
 
 # ---------------------------------------------------------------------------
@@ -926,19 +903,20 @@ def classify(summary: np.ndarray, x_end: np.ndarray, gravity: np.ndarray, x0: np
     """
     S = {name: summary[i] for i, name in enumerate(SUMMARY)}
     up = -gravity / np.linalg.norm(gravity, axis=0, keepdims=True)
-    q = x_end[6:10]
-    body_z = np.array([2 * (q[1] * q[3] + q[0] * q[2]), 2 * (q[2] * q[3] - q[0] * q[1]),
-                       1 - 2 * (q[1] ** 2 + q[2] ** 2)])
+    xl = state_layout(n_legs)
+    body_z = body_axis_np(xl.get(x_end, "attitude").T).T
     final_tilt = np.degrees(np.arccos(np.clip(np.sum(up * body_z, axis=0), -1, 1)))
-    contacts = x_end[[BODY_STATE + LEG_STATE * j + 3 for j in range(n_legs)]]
+    contacts = xl.legs(x_end, "contact")
     out = {
         "max_stroke": S["max_stroke"], "max_beta": S["max_beta"], "max_gamma": S["max_gamma"],
         "peak_decel": S["peak_decel"], "peak_decel_raw": S["peak_decel_raw"],
         "max_tilt_deg": np.degrees(np.arccos(np.clip(1 - S["max_one_minus_cos_tilt"], -1, 1))),
         "final_tilt_deg": final_tilt, "rebound_speed": S["rebound_speed"],
         "airborne_time": S["airborne_time"], "first_contact_time": S["first_contact_time"],
-        "min_height": S["min_height"], "final_speed": np.linalg.norm(x_end[3:6], axis=0),
-        "slide": np.linalg.norm(x_end[0:2] - x0[0:2], axis=0),
+        "min_height": S["min_height"],
+        "final_speed": np.linalg.norm(xl.get(x_end, "velocity"), axis=0),
+        # along the ground: the slope frame's x and y
+        "slide": np.linalg.norm((xl.get(x_end, "position") - xl.get(x0, "position"))[:2], axis=0),
         "feet_down": np.sum(contacts > 0.5, axis=0).astype(float),
     }
     n = summary.shape[1]
@@ -1090,20 +1068,43 @@ def _slope_bins(slope: np.ndarray, count: int = 3) -> list:
 
 
 def _tasks(conditions: dict, batch: int) -> list:
-    """(μ, indices) per batch: cases grouped by μ (one compiled Function per value)."""
-    mu = conditions["mu"]
+    """(friction, indices) per batch: frictionless cases (μ = 0) run on the smaller
+    graph without friction paths, every other μ on one friction library."""
+    friction = conditions["mu"] > 0
     tasks = []
-    for level in np.unique(mu):
-        idx = np.flatnonzero(mu == level)
-        tasks += [(float(level), idx[i:i + batch]) for i in range(0, len(idx), batch)]
+    for key in (False, True):
+        idx = np.flatnonzero(friction == key)
+        tasks += [(key, idx[i:i + batch]) for i in range(0, len(idx), batch)]
     return tasks
 
 
-def _scene_data(study: EnvelopeStudy, mu: float) -> dict | None:
+def _level_scene(scene: Scene, friction: bool, mu: np.ndarray) -> Scene:
+    """The scene whose graph runs the cases: frictionless, or with friction (μ an input)."""
+    if not friction:
+        return scene.with_(mu=0.0)
+    return scene if scene.mu > 0 else scene.with_(mu=float(np.max(mu)))
+
+
+def _libraries(study: EnvelopeStudy, mu: np.ndarray, cache_dir, progress: bool) -> dict:
+    """One compiled library per kind of case present (frictionless, friction)."""
+    return {friction: build_envelope(_level_scene(study.scene, friction, mu), cache_dir,
+                                     progress=progress)
+            for friction in sorted({bool(v > 0) for v in mu})}
+
+
+def _all_params(study: EnvelopeStudy, mu: np.ndarray, gravity: np.ndarray) -> dict:
+    """Each kind's parameter columns (np, n), indexed by case."""
+    return {friction: case_params(_level_scene(study.scene, friction, mu),
+                                  np.where(mu > 0, mu, 0.0) if friction else np.zeros_like(mu),
+                                  gravity)
+            for friction in sorted({bool(v > 0) for v in mu})}
+
+
+def _scene_data(study: EnvelopeStudy, friction: bool, mu: np.ndarray) -> dict | None:
     if study.scene_data is None:
         return None
     raw = json.loads(json.dumps(study.scene_data))
-    raw.setdefault("scene", {})["mu"] = mu
+    raw.setdefault("scene", {})["mu"] = _level_scene(study.scene, friction, mu).mu
     return raw
 
 
@@ -1150,12 +1151,9 @@ def run_envelope(study: EnvelopeStudy, out_dir=None, *, threads: int | None = No
     conditions = sample_conditions(study)
     x0, gravity = initial_states(study, conditions)
     scene = study.scene
-    p = np.concatenate([leg.param_values for leg in scene.legs])
     started = time.perf_counter()
-    libraries = {}
-    for mu in np.unique(conditions["mu"]):
-        level = scene.with_(mu=float(mu))
-        libraries[float(mu)] = build_envelope(level, cache_dir, progress=progress)
+    libraries = _libraries(study, conditions["mu"], cache_dir, progress)
+    p = _all_params(study, conditions["mu"], gravity)
     build_seconds = time.perf_counter() - started
     tasks = _tasks(conditions, study.batch)
     x_end = np.zeros_like(x0)
@@ -1165,14 +1163,15 @@ def run_envelope(study: EnvelopeStudy, out_dir=None, *, threads: int | None = No
     started = time.perf_counter()
     info = {}
     if not dask:
-        for mu, idx in tasks:
-            xe, sm = run_batch(libraries[mu], x0[:, idx], gravity[:, idx], p, scene.dt, threads)
+        for friction, idx in tasks:
+            xe, sm = run_batch(libraries[friction], x0[:, idx], p[friction][:, idx], scene.dt,
+                               threads)
             x_end[:, idx], summary[:, idx] = xe, sm
             bar.update(len(idx))
         info = {"threads": threads}
     else:
         # run_seconds leaves out the cluster's start (reported as startup_seconds)
-        info = _run_dask(study, tasks, libraries, x0, gravity, p, x_end, summary, bar,
+        info = _run_dask(study, tasks, libraries, x0, conditions["mu"], p, x_end, summary, bar,
                          scheduler, workers, cache_dir)
     run_seconds = info.pop("compute_seconds", time.perf_counter() - started)
     columns = classify(summary, x_end, gravity, x0, study.limits, len(scene.legs))
@@ -1218,17 +1217,17 @@ def evaluate(study: EnvelopeStudy, conditions: dict, *, threads: int = 1, cache_
                 (study.scene.mu if name == "mu" else _DEFAULTS[name])
             full[name] = np.full(n, value)
     x0, gravity = initial_states(study, full)
-    p = np.concatenate([leg.param_values for leg in study.scene.legs])
+    libraries = _libraries(study, full["mu"], cache_dir, progress)
+    p = _all_params(study, full["mu"], gravity)
     x_end = np.zeros_like(x0)
     summary = np.zeros((len(SUMMARY), n))
-    for mu, idx in _tasks(full, study.batch):
-        lib = build_envelope(study.scene.with_(mu=mu), cache_dir, progress=progress)
-        x_end[:, idx], summary[:, idx] = run_batch(lib, x0[:, idx], gravity[:, idx], p,
-                                                   study.scene.dt, threads)
+    for friction, idx in _tasks(full, study.batch):
+        x_end[:, idx], summary[:, idx] = run_batch(libraries[friction], x0[:, idx],
+                                                   p[friction][:, idx], study.scene.dt, threads)
     return classify(summary, x_end, gravity, x0, study.limits, len(study.scene.legs))
 
 
-def _run_dask(study, tasks, libraries, x0, gravity, p, x_end, summary, bar, scheduler,
+def _run_dask(study, tasks, libraries, x0, mu, p, x_end, summary, bar, scheduler,
               workers, cache_dir) -> dict:
     try:
         from distributed import Client, LocalCluster, as_completed
@@ -1248,10 +1247,10 @@ def _run_dask(study, tasks, libraries, x0, gravity, p, x_end, summary, bar, sche
     bar.started = time.perf_counter()
     try:
         futures = {}
-        for k, (mu, idx) in enumerate(tasks):
-            fut = client.submit(_dask_batch, str(Path(libraries[mu]).resolve()),
-                                _scene_data(study, mu), study.source, cache,
-                                x0[:, idx], gravity[:, idx], p, study.scene.dt,
+        for k, (friction, idx) in enumerate(tasks):
+            fut = client.submit(_dask_batch, str(Path(libraries[friction]).resolve()),
+                                _scene_data(study, friction, mu), study.source, cache,
+                                x0[:, idx], p[friction][:, idx], study.scene.dt,
                                 key=f"envelope-{study.name}-{study.seed}-{k}-{os.getpid()}-"
                                     f"{time.monotonic_ns()}")
             futures[fut] = idx

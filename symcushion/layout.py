@@ -35,14 +35,15 @@ import numpy as np
 
 __all__ = ["Field", "VectorLayout", "BODY_STATE_FIELDS", "LEG_STATE_FIELDS", "BODY_OUT_FIELDS",
            "LEG_OUT_FIELDS", "BODY_STATE", "LEG_STATE", "BODY_OUT", "LEG_OUT", "MODES",
-           "UNITS", "state_layout", "output_layout", "state_columns", "output_columns",
+           "UNITS", "SCENE_PARAM_FIELDS", "ParamLayout", "param_layout", "default_p",
+           "state_layout", "output_layout", "state_columns", "output_columns",
            "quat_to_rot", "quat_to_rot_np", "quat_mul", "quat_mul_np", "quat_exp",
            "quat_from_axis_angle_np", "body_axis", "body_axis_np", "one_minus_cos_tilt",
            "tilt", "tilt_np"]
 
 #: Unit tokens of CSV column names and what each stands for.
 UNITS = {"m": "m", "m_s": "m/s", "m_s2": "m/s²", "rad": "rad", "rad_s": "rad/s", "N": "N",
-         "1": "dimensionless"}
+         "1": "dimensionless", "kg": "kg", "kg_m2": "kg·m²"}
 
 _XYZ = ("x", "y", "z")
 _WXYZ = ("w", "x", "y", "z")
@@ -263,6 +264,28 @@ class VectorLayout:
                              f"{self.size}; check the sizes of the fields.")
         return out
 
+    def pack_columns(self, n: int, **fields) -> np.ndarray:
+        """Assemble ``n`` vectors as the columns of an array (size, n), NumPy.
+
+        Each field is given as (field size, n) (a scalar field as (n,));
+        leg fields as a sequence over the legs of such arrays.
+        """
+        expected = [f.name for f in self.body_fields] + [f.name for f in self.leg_fields]
+        if sorted(fields) != sorted(expected):
+            raise ValueError(f"`pack_columns` of the {self.name} needs exactly the fields "
+                             f"{expected}, got {sorted(fields)}.")
+        parts = [(f, fields[f.name]) for f in self.body_fields]
+        for j in range(self.n_legs):
+            parts += [(f, fields[f.name][j]) for f in self.leg_fields]
+        rows = []
+        for f, value in parts:
+            value = np.asarray(value, dtype=float)
+            if value.size != f.size * n:
+                raise ValueError(f"`{f.name}` must have shape ({f.size}, {n}), got "
+                                 f"{value.shape}.")
+            rows.append(value.reshape(f.size, n))
+        return np.vstack(rows) if rows else np.zeros((0, n))
+
     def columns(self) -> list:
         """CSV column names in vector order."""
         cols = [c for f in self.body_fields for c in f.columns("body")]
@@ -295,6 +318,136 @@ def state_columns(n_legs: int) -> list:
 def output_columns(n_legs: int) -> list:
     """CSV column names of the per-step output, in vector order."""
     return output_layout(n_legs).columns()
+
+
+# ---------------------------------------------------------------------------
+# the parameter vector p
+# ---------------------------------------------------------------------------
+#: Scene entries of ``p``, after the legs' parameters. ``mu`` is present only
+#: when the scene has friction (μ > 0): a frictionless scene builds the
+#: smaller graph without friction paths and has no μ to vary.
+SCENE_PARAM_FIELDS = (
+    Field("mu", "1", "Coulomb friction coefficient of every contact (friction scenes only)"),
+    Field("gravity", "m_s2", "acceleration of gravity, world frame", _XYZ),
+    Field("mass", "kg", "body mass"),
+    Field("inertia", "kg_m2", "body inertia about the centre of mass, body axes "
+          "(xx, yy, zz, xy, xz, yz of the symmetric tensor)", ("xx", "yy", "zz", "xy", "xz", "yz")),
+)
+#: Where each entry of the inertia field goes in the 3 × 3 tensor.
+_INERTIA_ENTRIES = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
+
+
+class ParamLayout:
+    """Layout of ``p``: every leg's tunable curve parameters, then the scene entries.
+
+    ``p = [leg 0 params, leg 1 params, ..., (mu), gravity (3), mass, inertia (6)]``;
+    names are ``leg{j}.{element}.{name}`` for the legs and ``mu``,
+    ``gravity.x``, ``mass``, ``inertia.xx``, ... for the scene.
+
+    Parameters
+    ----------
+    leg_param_names : sequence of tuple of str
+        Each leg's ``param_names`` (possibly empty).
+    friction : bool
+        Whether ``mu`` is an entry.
+    """
+
+    def __init__(self, leg_param_names, friction: bool):
+        self.friction = bool(friction)
+        names, self._legs, start = [], [], 0
+        for j, leg_names in enumerate(leg_param_names):
+            names += [f"leg{j}.{n}" for n in leg_names]
+            self._legs.append(slice(start, start + len(leg_names)))
+            start += len(leg_names)
+        self.n_leg_params = start
+        self.scene_fields = tuple(f for f in SCENE_PARAM_FIELDS if f.name != "mu" or friction)
+        self._scene = {}
+        for f in self.scene_fields:
+            self._scene[f.name] = slice(start, start + f.size)
+            names += [f.name] if not f.axes else [f"{f.name}.{a}" for a in f.axes]
+            start += f.size
+        self.names, self.size = tuple(names), start
+
+    def leg(self, p, j: int):
+        """Rows of leg ``j``'s curve parameters in ``p`` (NumPy or CasADi)."""
+        s = self._legs[j]
+        return _rows(p, s.start, s.stop)
+
+    def slice(self, field: str) -> slice:
+        """Index range of a scene field (``mu``, ``gravity``, ``mass``, ``inertia``)."""
+        if field not in self._scene:
+            extra = " (the scene is frictionless: μ = 0 builds no friction paths; give the " \
+                "scene a μ > 0 to vary it)" if field == "mu" else ""
+            raise KeyError(f"`p` has no field {field!r}{extra}; scene fields: "
+                           f"{list(self._scene)}.")
+        return self._scene[field]
+
+    def get(self, p, field: str):
+        """Rows of a scene field in ``p``; scalars of a 1-D NumPy ``p`` as floats."""
+        s = self.slice(field)
+        if not _is_casadi(p) and s.stop - s.start == 1:
+            return p[s.start]
+        return _rows(p, s.start, s.stop)
+
+    def inertia(self, p):
+        """Inertia tensor (3 × 3, kg·m²) from a 1-D ``p`` (NumPy or CasADi)."""
+        entries = self.get(p, "inertia")
+        if _is_casadi(p):
+            rows = [[None] * 3 for _ in range(3)]
+            for k, (a, b) in enumerate(_INERTIA_ENTRIES):
+                rows[a][b] = rows[b][a] = entries[k]
+            return ca.vertcat(*[ca.horzcat(*r) for r in rows])
+        out = np.zeros((3, 3))
+        for k, (a, b) in enumerate(_INERTIA_ENTRIES):
+            out[a, b] = out[b, a] = entries[k]
+        return out
+
+    def pack(self, base, **overrides) -> np.ndarray:
+        """A copy of ``base`` (shape (size,)) with named scene entries replaced.
+
+        ``overrides`` take the scene fields (``mu=0.4``, ``gravity=(0, 0, -1.62)``,
+        ``mass=…``, ``inertia=`` a 3 × 3 symmetric tensor); leg parameters are
+        set by name through :meth:`index`.
+        """
+        p = np.array(base, dtype=float).ravel()
+        if p.shape != (self.size,):
+            raise ValueError(f"`base` must have {self.size} entries {self.names}, got {p.shape}.")
+        for name, value in overrides.items():
+            s = self.slice(name)
+            value = np.asarray(value, dtype=float)
+            if name == "inertia":
+                if value.shape != (3, 3) or not np.allclose(value, value.T):
+                    raise ValueError(f"`inertia` must be a symmetric 3 × 3 tensor (kg·m²), got "
+                                     f"{value.tolist()}.")
+                value = np.array([value[a, b] for a, b in _INERTIA_ENTRIES])
+            if value.size != s.stop - s.start or not np.all(np.isfinite(value)):
+                raise ValueError(f"`{name}` must be {s.stop - s.start} finite number(s), got "
+                                 f"{value.tolist()}.")
+            p[s] = value.ravel()
+        return p
+
+    def index(self, name: str) -> int:
+        """Index of the entry called ``name`` (e.g. ``'leg0.S.k'`` or ``'gravity.z'``)."""
+        try:
+            return self.names.index(name)
+        except ValueError:
+            raise KeyError(f"`p` has no entry {name!r}; entries: {list(self.names)}.") from None
+
+
+def param_layout(scene) -> ParamLayout:
+    """The :class:`ParamLayout` of a scene (μ an entry only when ``scene.mu > 0``)."""
+    return ParamLayout([leg.param_names for leg in scene.legs], scene.mu > 0)
+
+
+def default_p(scene) -> np.ndarray:
+    """The scene's own values of ``p``: curve parameters, (μ), gravity, mass, inertia."""
+    lay = param_layout(scene)
+    legs = [np.asarray(leg.param_values, dtype=float) for leg in scene.legs]
+    base = np.concatenate(legs + [np.zeros(lay.size - lay.n_leg_params)])
+    overrides = dict(gravity=scene.gravity, mass=scene.body.mass, inertia=scene.body.inertia)
+    if lay.friction:
+        overrides["mu"] = scene.mu
+    return lay.pack(base, **overrides)
 
 
 # ---------------------------------------------------------------------------

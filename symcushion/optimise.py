@@ -50,7 +50,9 @@ import numpy as np
 from .characteristics import Curve, PiecewiseLinear
 from .obstacles import closest_obstacle
 from .scene import Scene, _Table, read_toml, scene_from_dict
-from .simulate import BODY_OUT, BODY_STATE, LEG_OUT, LEG_STATE, build_model, initial_state
+from .layout import quat_to_rot_np, state_layout
+from .measures import measures_function
+from .simulate import build_model, initial_state
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -381,11 +383,14 @@ class DesignProblem:
 
         self._models = {}
         self.models = [self._model(s.scene) for s in self.scenarios]
-        self.param_names = self.models[0].param_names
+        # design variables are the legs' curve parameters, the head of every model's p;
+        # the scene entries after them (μ, gravity, body) stay each scenario's own
+        self.param_names = _leg_param_names(self.models[0])
         for s, m in zip(self.scenarios, self.models):
-            if m.param_names != self.param_names:
-                raise ValueError(f"scenario `{s.name}` has parameters {m.param_names}, the "
-                                 f"first scenario {self.param_names}; scenarios must share legs.")
+            if _leg_param_names(m) != self.param_names:
+                raise ValueError(f"scenario `{s.name}` has parameters {_leg_param_names(m)}, "
+                                 f"the first scenario {self.param_names}; scenarios must share "
+                                 "legs.")
             if s.x0 is None:
                 s.x0 = initial_state(s.scene)
             s.x0 = np.asarray(s.x0, dtype=float).ravel()
@@ -547,20 +552,17 @@ class DesignProblem:
         for s, model in zip(self.scenarios, self.models):
             scene = s.scene
             up = _up(scene.gravity)
-            X, Y = model.rollout(scene.steps)(ca.DM(s.x0), p, scene.dt)
-            acc = ca.mtimes(ca.DM(up).T, Y[0:3, :] - ca.repmat(ca.DM(scene.gravity), 1,
-                                                                 scene.steps))
-            legs_out = [Y[BODY_OUT + LEG_OUT * j: BODY_OUT + LEG_OUT * (j + 1), :]
-                        for j in range(model.n_legs)]
-            strokes = [lo[11, :] for lo in legs_out]
-            betas = [lo[12, :] for lo in legs_out]
-            gammas = [lo[13, :] for lo in legs_out]
-            quat = X[6:10, :]
-            body_z = ca.vertcat(2 * (quat[1, :] * quat[3, :] + quat[0, :] * quat[2, :]),
-                                2 * (quat[2, :] * quat[3, :] - quat[0, :] * quat[1, :]),
-                                1 - 2 * (quat[1, :] ** 2 + quat[2, :] ** 2))
-            one_minus_cos_tilt = 1 - ca.mtimes(ca.DM(up).T, body_z)
-            v_up = ca.dot(ca.DM(up), X[3:6, -1])
+            # the design rows of p, then this scenario's own μ, gravity and body
+            p_full = ca.vertcat(p, ca.DM(model.default_p[model.params.n_leg_params:]))
+            X, Y = model.rollout(scene.steps)(ca.DM(s.x0), p_full, scene.dt)
+            per_step = measures_function(scene).map(scene.steps).call(
+                dict(x=X, y=Y, p=ca.repmat(p_full, 1, scene.steps)))
+            acc = ca.mtimes(ca.DM(up).T, per_step["specific_force"])
+            strokes = [per_step["stroke"][j, :] for j in range(model.n_legs)]
+            betas = [per_step["beta"][j, :] for j in range(model.n_legs)]
+            gammas = [per_step["gamma_deflection"][j, :] for j in range(model.n_legs)]
+            one_minus_cos_tilt = per_step["one_minus_cos_tilt"]
+            v_up = per_step["upward_speed"][-1]
             axial = [j for j, leg in enumerate(scene.legs) if not leg.rigid]
             self._measure.append(dict(acc=acc, strokes=strokes, betas=betas, gammas=gammas,
                                       tilt=one_minus_cos_tilt, v_up=v_up, axial=axial))
@@ -611,7 +613,8 @@ class DesignProblem:
             if lim.rebound_speed is not None or lim.sink_speed is not None:
                 top = lim.rebound_speed if lim.rebound_speed is not None else math.inf
                 bottom = -lim.sink_speed if lim.sink_speed is not None else -math.inf
-                sc = max(abs(float(np.dot(_up(s.scene.gravity), s.x0[3:6]))), 0.1)
+                v0 = state_layout(model.n_legs).get(s.x0, "velocity")
+                sc = max(abs(float(np.dot(_up(s.scene.gravity), v0))), 0.1)
                 add(m["v_up"], "final_speed", sc, bottom / sc, top / sc, "m/s", s.name,
                     label="final vertical speed")
 
@@ -740,18 +743,19 @@ class DesignProblem:
         up = _up(scene.gravity)
         if self.limits.stroke is None or self.objective_kind != "peak_deceleration":
             return {}
-        R = _rotation(s.x0[6:10])
+        xl = state_layout(len(scene.legs))
+        R = quat_to_rot_np(xl.get(s.x0, "attitude"))
         if not all(abs(float(np.dot(R @ leg.e0, up)) + 1) < 1e-9 for leg in scene.legs):
             return {}
         # vertical speed at touchdown from the initial speed and the height of the
         # lowest foot (energy; the legs are free until then)
         heights = []
         for j, leg in enumerate(scene.legs):
-            foot = s.x0[BODY_STATE + LEG_STATE * j: BODY_STATE + LEG_STATE * j + 3]
+            foot = xl.get(s.x0, "foot", j)
             d, _, _ = closest_obstacle(scene.obstacles, ca.DM(foot))
             heights.append(float(d))
         g = float(np.linalg.norm(scene.gravity))
-        v0 = float(np.dot(up, s.x0[3:6]))
+        v0 = float(np.dot(up, xl.get(s.x0, "velocity")))
         v_td2 = v0 ** 2 + 2 * g * max(min(heights), 0.0)
         ideal = v_td2 / (2 * self.limits.stroke) + g
         return dict(ideal_peak_deceleration=ideal, efficiency=ideal / peak if peak > 0 else None)
@@ -1051,17 +1055,14 @@ class _IterationCallback(ca.Callback):
         return [0]
 
 
+def _leg_param_names(model) -> tuple:
+    """The legs' curve parameters of a model's ``p`` (without the scene entries)."""
+    return model.param_names[:model.params.n_leg_params]
+
+
 def _up(gravity):
     norm = float(np.linalg.norm(gravity))
     return -np.asarray(gravity, dtype=float) / norm if norm > 0 else np.array([0.0, 0.0, 1.0])
-
-
-def _rotation(q):
-    w, x, y, z = np.asarray(q, dtype=float) / np.linalg.norm(q)
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
 
 
 def _rate(curve: Curve, x: float, loading: bool):
@@ -1423,7 +1424,7 @@ def _scenario(t: _Fields, base: Scene, scene_raw: dict, scene_source: str) -> Sc
 def _place(scene: Scene, body, clearance: float) -> np.ndarray:
     """Body position, moved along the vertical, whose lowest free foot is ``clearance`` up."""
     up = _up(scene.gravity)
-    R = _rotation(body.attitude)
+    R = quat_to_rot_np(body.attitude)
     pos = np.array(body.position, dtype=float)
     for _ in range(_PLACEMENT_ITERS):
         best = None

@@ -49,8 +49,8 @@ import casadi as ca
 import numpy as np
 
 from .contact import contact_step_expr
-from .layout import (BODY_OUT, BODY_STATE, LEG_OUT, LEG_STATE, MODES, quat_exp, quat_mul,
-                     quat_to_rot, quat_to_rot_np)
+from .layout import (BODY_OUT, BODY_STATE, LEG_OUT, LEG_STATE, MODES, ParamLayout, default_p,
+                     param_layout, quat_exp, quat_mul, quat_to_rot, quat_to_rot_np)
 from .obstacles import closest_obstacle
 from .scene import Scene
 
@@ -89,7 +89,12 @@ class StepModel:
     nx, ny, np : int
         Sizes of the state, the per-step output and the parameter vector.
     param_names : tuple of str
-        Names of ``p`` (``leg{j}.{element}.{name}``).
+        Names of ``p``: ``leg{j}.{element}.{name}`` for the legs' curve
+        parameters, then the scene's ``mu`` (friction scenes only),
+        ``gravity.x/y/z``, ``mass`` and ``inertia.xx/yy/zz/xy/xz/yz``
+        (:class:`~symcushion.layout.ParamLayout`).
+    params : ParamLayout
+        The layout of ``p`` (read and write its entries by name).
     """
 
     step: ca.Function
@@ -98,6 +103,7 @@ class StepModel:
     ny: int
     np: int
     param_names: tuple
+    params: ParamLayout | None = None
     _rollouts: dict = field(default_factory=dict)
     _body_stiffness: ca.Function | None = None
 
@@ -124,6 +130,17 @@ class StepModel:
         return self._rollouts[steps]
 
     @property
+    def default_p(self) -> np.ndarray:
+        """The scene's values of ``p`` (shape (np,))."""
+        return default_p(self.scene)
+
+    def pack_params(self, base=None, **overrides) -> np.ndarray:
+        """``p`` with named scene entries replaced (``mu=``, ``gravity=``, ``mass=``,
+        ``inertia=``); ``base`` defaults to :attr:`default_p`. A frictionless scene
+        has no ``mu`` entry and refuses one."""
+        return self.params.pack(self.default_p if base is None else base, **overrides)
+
+    @property
     def n_legs(self):
         return len(self.scene.legs)
 
@@ -133,12 +150,9 @@ class StepModel:
 
 
 def _leg_params(scene: Scene):
-    names, offsets, start = [], [], 0
-    for j, leg in enumerate(scene.legs):
-        offsets.append((start, start + len(leg.param_names)))
-        names += [f"leg{j}.{n}" for n in leg.param_names]
-        start += len(leg.param_names)
-    return tuple(names), offsets
+    """Names of ``p`` and each leg's (start, stop) range of curve parameters."""
+    lay = param_layout(scene)
+    return lay.names, [(sl.start, sl.stop) for sl in lay._legs]
 
 
 def build_model(scene: Scene) -> StepModel:
@@ -148,22 +162,24 @@ def build_model(scene: Scene) -> StepModel:
     μ = 0 builds the frictionless contact step, and only the scene's
     obstacles are in the graph.
     """
-    legs, body = scene.legs, scene.body
+    legs = scene.legs
     n_legs = len(legs)
+    params = param_layout(scene)
     names, offsets = _leg_params(scene)
     nx = BODY_STATE + LEG_STATE * n_legs
     ny = BODY_OUT + LEG_OUT * n_legs
 
     X = ca.SX.sym("x", nx)
-    p = ca.SX.sym("p", len(names))
+    p = ca.SX.sym("p", params.size)
     h = ca.SX.sym("dt")
 
-    m = body.mass
-    inertia = ca.DM(body.inertia)
-    inertia_inv = ca.DM(np.linalg.inv(body.inertia))
-    g = ca.DM(scene.gravity)
-    mu = scene.mu
-    friction = mu > 0
+    # scene entries of p: one compiled step serves every gravity, body and μ
+    m = params.get(p, "mass")
+    inertia = params.inertia(p)
+    inertia_inv = ca.inv(inertia)
+    g = params.get(p, "gravity")
+    friction = scene.mu > 0          # μ = 0 literally: the frictionless graph, no μ entry
+    mu = params.get(p, "mu") if friction else 0.0
 
     pos, vel, quat, omega = X[0:3], X[3:6], X[6:10], X[10:13]
     feet = [X[BODY_STATE + LEG_STATE * j: BODY_STATE + LEG_STATE * (j + 1)]
@@ -222,7 +238,7 @@ def build_model(scene: Scene) -> StepModel:
         v_rel = l / h                                          # selects loading branches
         P0 = fns["strut_force"](rho_s, v_rel, p_leg)
         Dp = fns["strut_stiffness"](rho_s, v_rel, p_leg)
-        out = contact_step_expr(scene.method, P0, Dp, n_b, l, mu if friction else 0.0, u0,
+        out = contact_step_expr(scene.method, P0, Dp, n_b, l, mu, u0,
                                 friction=friction)
         if scene.tangent_plane == "end":
             # second pass: the tangent plane at the predicted end point, shifted along
@@ -231,7 +247,7 @@ def build_model(scene: Scene) -> StepModel:
             _, normal_w, _ = closest_obstacle(scene.obstacles, r_pred)
             n_b = R1.T @ normal_w
             l = l + n_b * ca.dot(n_b, R1.T @ (r_pred - r_s))
-            out = contact_step_expr(scene.method, P0, Dp, n_b, l, mu if friction else 0.0, u0,
+            out = contact_step_expr(scene.method, P0, Dp, n_b, l, mu, u0,
                                     friction=friction)
         stays = ca.logic_and(active, out["contact"] > 0.5)
         rho1 = ca.if_else(stays, rho_s + out["delta"], rest[j])
@@ -262,7 +278,8 @@ def build_model(scene: Scene) -> StepModel:
     y = ca.vertcat(acc1, *outputs)
     step = ca.Function("touchdown_step", [X, p, h], [x_next, y], ["x", "p", "dt"],
                        ["x_next", "y"])
-    return StepModel(step=step, scene=scene, nx=nx, ny=ny, np=len(names), param_names=names)
+    return StepModel(step=step, scene=scene, nx=nx, ny=ny, np=params.size, param_names=names,
+                     params=params)
 
 
 # ---------------------------------------------------------------------------
@@ -613,8 +630,7 @@ def simulate(scene: Scene, *, model: StepModel | None = None, x0=None, p=None,
 
 
 def _default_p(scene):
-    vals = [leg.param_values for leg in scene.legs]
-    return np.concatenate(vals) if vals else np.zeros(0)
+    return default_p(scene)
 
 
 def _normals(model, y):

@@ -146,15 +146,15 @@ def test_touchdown_step_and_rollout_equal_sx(built, scene):
     _, fns = built
     model = build_model(scene)
     x0 = initial_state(scene)
-    X, _ = model.rollout(scene.steps)(x0, [], scene.dt)
+    X, _ = model.rollout(scene.steps)(x0, model.default_p, scene.dt)
     states = np.asarray(X).T
     rng = np.random.default_rng(8)
     for i in range(STEP_CASES):
         # states of the drop (feet free, landing, in contact), perturbed
         x = states[rng.integers(len(states))] * (1 + 1e-3 * rng.standard_normal(model.nx))
-        args = {"x": x, "p": np.zeros(0), "dt": scene.dt * rng.uniform(0.5, 2.0)}
+        args = {"x": x, "p": model.default_p, "dt": scene.dt * rng.uniform(0.5, 2.0)}
         _assert_same(fns["touchdown_step"], model.step, args, f"touchdown_step case {i}")
-    args = {"x0": x0, "p": np.zeros(0), "dt": scene.dt}
+    args = {"x0": x0, "p": model.default_p, "dt": scene.dt}
     _assert_same(fns["touchdown_rollout"], model.rollout(scene.steps), args, "touchdown_rollout")
 
 
@@ -165,8 +165,8 @@ def test_compiled_model_simulates_like_the_vm(built, scene):
     fast, slow = simulate(scene, model=compiled), simulate(scene)
     assert _rel_err(fast.position, slow.position) <= TRAJ_TOL
     # another N: the compiled step rolled out by mapaccum
-    X_c, _ = compiled.rollout(7)(initial_state(scene), [], scene.dt)
-    X_v, _ = build_model(scene).rollout(7)(initial_state(scene), [], scene.dt)
+    X_c, _ = compiled.rollout(7)(initial_state(scene), compiled.default_p, scene.dt)
+    X_v, _ = build_model(scene).rollout(7)(initial_state(scene), compiled.default_p, scene.dt)
     assert _rel_err(X_c, X_v) <= REL_TOL
 
 
@@ -186,7 +186,7 @@ def test_standalone_program_equals_python_rollout(built, scene, tmp_path):
     table = np.loadtxt(csv, delimiter=",", skiprows=1)
     model = build_model(scene)
     x0 = initial_state(scene)
-    X, _ = model.rollout(scene.steps)(x0, [], scene.dt)
+    X, _ = model.rollout(scene.steps)(x0, model.default_p, scene.dt)
     expected = np.column_stack([x0, np.asarray(X)]).T
     assert table.shape == (scene.steps + 1, 1 + model.nx)
     np.testing.assert_allclose(table[:, 0], scene.dt * np.arange(scene.steps + 1), rtol=0,
@@ -261,7 +261,11 @@ def test_tunable_scene_generates_clean_c(tmp_path):
     scene = load_scene(path)
     gen = codegen.generate(tmp_path / "out", scene)
     info = json.loads((gen.out_dir / codegen.MANIFEST).read_text())
-    assert info["np"] == 16 and info["functions"]["touchdown_rollout"]["in"]["p"] == "16"
+    # 16 curve parameters of the legs, then gravity (3), mass (1) and inertia (6): μ = 0
+    assert info["np"] == 16 + 10 and info["functions"]["touchdown_rollout"]["in"]["p"] == "26"
+    assert info["param_names"][16:] == ["gravity.x", "gravity.y", "gravity.z", "mass",
+                                        "inertia.xx", "inertia.yy", "inertia.zz", "inertia.xy",
+                                        "inertia.xz", "inertia.yz"]
     for source in [*gen.sources, gen.out_dir / "main.c"]:
         # the front end's warnings (the ones CasADi's code could trigger) without optimising
         run = subprocess.run([codegen.find_compiler(), "-std=c99", *codegen.WARNINGS,

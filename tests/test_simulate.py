@@ -171,7 +171,7 @@ def test_rollout_equals_python_loop():
     scene = load_scene(ROOT / "studies" / "fig4.toml").with_(method="implicit", duration=0.2)
     model = build_model(scene)
     x = initial_state(scene)
-    p = np.zeros(model.np)
+    p = model.default_p
     X, _ = model.rollout(scene.steps)(x, p, scene.dt)
     X = np.asarray(X)
     for k in range(scene.steps):
