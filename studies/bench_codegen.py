@@ -230,7 +230,7 @@ def measure_drop(scene, out_dir: Path) -> dict:
     model = build_model(scene)
     steps = scene.steps
     x0 = initial_state(scene)
-    p = np.zeros(model.np)
+    p = model.default_p
     vm_rollout, c_rollout = model.rollout(steps), compiled.rollout(steps)
 
     def vm_loop():

@@ -61,8 +61,9 @@ from symcushion import report
 from symcushion.characteristics import Linear
 from symcushion.obstacles import Plane, Sphere, closest_obstacle
 from symcushion.scene import Body, Scene, symmetric_legs
-from symcushion.simulate import (BODY_STATE, LEG_STATE, build_model, equilibrium_state,
-                                 initial_state, simulate, stable_dt, trajectory_from)
+from symcushion.layout import quat_to_rot, quat_to_rot_np, state_layout
+from symcushion.simulate import (build_model, equilibrium_state, initial_state, simulate,
+                                 stable_dt, trajectory_from)
 from symcushion.strut import HingedStrut
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -187,9 +188,9 @@ def explicit_limit(method, dt=1e-3, steps=20):
     """Body speed (m/s) after each of ``steps`` steps of the sticking stiff case at ``dt``."""
     scene = case_stiff_axial_stick(method, full=False).scene.with_(dt=dt)
     model = build_model(scene)
-    p = np.zeros(model.np)
-    X, _ = model.rollout(steps)(initial_state(scene), p, dt)
-    return np.linalg.norm(np.asarray(X, dtype=float)[3:6], axis=0)
+    X, _ = model.rollout(steps)(initial_state(scene), model.default_p, dt)
+    return np.linalg.norm(state_layout(model.n_legs).get(np.asarray(X, dtype=float), "velocity"),
+                          axis=0)
 
 
 #: Interference of the grazing foot's path with the sphere (m): the line of
@@ -256,7 +257,8 @@ def case_slope_stick(method, full=True):
     # friction forces tilt the load and the feet's T/N differ from tan θ by ~0.5 %:
     # μ is set just above the largest one at the equilibrium
     n = scene.obstacles[0].n
-    forces = x0[BODY_STATE:].reshape(-1, LEG_STATE)[:, 4:7] @ _rotations(x0[None, 6:10])[0].T
+    xl = state_layout(len(scene.legs))
+    forces = xl.legs(x0, "force_body") @ quat_to_rot_np(xl.get(x0, "attitude"), normalise=False).T
     normal = forces @ n
     ratio = np.linalg.norm(forces - np.outer(normal, n), axis=1) / normal
     return Setup(scene.with_(mu=float(ratio.max()) + SLOPE_MARGIN), x0=x0, creep="feet+body",
@@ -345,7 +347,7 @@ def case_long_rest(method, full=True):
     scene = _dome_lander(method, 1e-2, 1000.0 if full else 100.0, "long_rest", radius=2.0,
                          mu=1.0, count=3)
     x0 = equilibrium_state(scene)
-    x0[5] = -REST_KICK
+    x0[state_layout(len(scene.legs)).slice("velocity")] = (0.0, 0.0, -REST_KICK)
     # the kick makes the body oscillate by ~25 µm for ever: only the feet must not move
     return Setup(scene, x0=x0, symmetry="axial", creep="feet")
 
@@ -385,25 +387,26 @@ def invariant_function(scene: Scene) -> ca.Function:
     deflection (δ_S, β, γ − γ₀), a free leg at its unloaded pose; d_j is the
     signed distance of foot j from the obstacle (positive outside).
     """
-    from symcushion.simulate import quat_to_rot
-
-    x = ca.SX.sym("x", BODY_STATE + LEG_STATE * len(scene.legs))
+    xl = state_layout(len(scene.legs))
+    x = ca.SX.sym("x", xl.size)
     body = scene.body
-    pos, vel, quat, omega = x[0:3], x[3:6], x[6:10], x[10:13]
+    pos, vel, quat, omega = (xl.get(x, k) for k in ("position", "velocity", "attitude",
+                                                     "angular_velocity"))
     R = quat_to_rot(quat)
     energy = (0.5 * body.mass * ca.dot(vel, vel)
               + 0.5 * ca.dot(omega, ca.DM(body.inertia) @ omega)
               - body.mass * ca.dot(ca.DM(scene.gravity), pos))
     dists = []
     for j, leg in enumerate(scene.legs):
-        foot = x[BODY_STATE + LEG_STATE * j: BODY_STATE + LEG_STATE * (j + 1)]
-        rho = ca.if_else(foot[3] > 0.5, R.T @ (foot[0:3] - pos), ca.DM(leg.rest_foot))
+        foot = xl.get(x, "foot", j)
+        rho = ca.if_else(xl.get(x, "contact", j) > 0.5, R.T @ (foot - pos),
+                         ca.DM(leg.rest_foot))
         geo = leg.geometry(rho)
         deflection = dict(S=geo["delta_S"], M_beta=geo["beta"],
                           M_gamma=geo["gamma"] - leg.gamma0)
         for el in leg.elements:
             energy = energy + _linear_energy(el.curve, deflection[el.name])
-        dists.append(closest_obstacle(scene.obstacles, foot[0:3])[0])
+        dists.append(closest_obstacle(scene.obstacles, foot)[0])
     return ca.Function("hard_case_invariants", [x], [energy, ca.vertcat(*dists)], ["x"],
                        ["E", "d"])
 
@@ -484,22 +487,13 @@ class Stats:
                               float(np.max(np.linalg.norm(traj.position - pos0, axis=1))))
 
 
-def _rotations(q):
-    """Rotation matrices (T, 3, 3), body → world, of unit quaternions q (T, 4)."""
-    w, x, y, z = q.T
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)], 1)
-
-
 def _singular_distance(scene, traj):
     """Smallest angle (rad) of a strut in contact to its hinge's singular sets.
 
     The sets of NOTES §2: e_S ∥ e_n (e_β undefined, D_p ~ 1/|e_S × e_n|) and
     e_S ⊥ e_n (the kink of γ); the angle is min(∠(e_S, ±e_n), |90° − ∠|).
     """
-    R = _rotations(traj.attitude)
+    R = quat_to_rot_np(traj.attitude, normalise=False)
     best = np.inf
     for j, leg in enumerate(scene.legs):
         c = traj.contact[:, j] > 0.5
@@ -602,7 +596,7 @@ def run_case(name, method, full=True) -> Result:
     scene = setup.scene
     model = build_model(scene)
     x0 = initial_state(scene) if setup.x0 is None else setup.x0
-    p = np.concatenate([leg.param_values for leg in scene.legs])
+    p = model.default_p
     inv = invariant_function(scene)
     length = max(leg.length for leg in scene.legs)
     stats = Stats()
@@ -617,9 +611,10 @@ def run_case(name, method, full=True) -> Result:
             if reference is None:
                 reference = (traj.foot[0].copy(), traj.position[0].copy())
             stats.update_creep(traj, reference)
-    E_el0 = float(inv(x0)[0]) - 0.5 * scene.body.mass * float(x0[3:6] @ x0[3:6]) \
-        + scene.body.mass * float(scene.gravity @ x0[0:3])
-    v0 = x0[3:6]
+    xl = state_layout(len(scene.legs))
+    v0 = xl.get(x0, "velocity")
+    E_el0 = float(inv(x0)[0]) - 0.5 * scene.body.mass * float(v0 @ v0) \
+        + scene.body.mass * float(scene.gravity @ xl.get(x0, "position"))
     energy_scale = (0.5 * scene.body.mass * float(v0 @ v0)
                     + scene.body.mass * float(np.linalg.norm(scene.gravity)) * length
                     + abs(E_el0))

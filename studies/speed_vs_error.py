@@ -71,7 +71,8 @@ import numpy as np
 from symcushion import report
 from symcushion.codegen import CompiledModel, compiled_model
 from symcushion.scene import Scene, load_scene
-from symcushion.simulate import BODY_STATE, LEG_STATE, build_model, initial_state
+from symcushion.layout import default_p, quat_to_rot_np, state_layout
+from symcushion.simulate import build_model, initial_state
 
 ROOT = Path(__file__).resolve().parent.parent
 STUDIES = ROOT / "studies"
@@ -185,16 +186,6 @@ class Run:
                         for k in ("position", "velocity", "decel", "hinge", "stroke")))
 
 
-def _rotations(quat):
-    """Rotation matrices (body → world) of unit quaternions (w, x, y, z), shape (T, 3, 3)."""
-    w, x, y, z = (quat[:, i] for i in range(4))
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)],
-        axis=1)
-
-
 def reduce_states(scene: Scene, X) -> dict:
     """The Run quantities of state columns X (nx × K), symcushion.simulate's layout.
 
@@ -204,15 +195,15 @@ def reduce_states(scene: Scene, X) -> dict:
     pose, deflection zero.
     """
     X = np.asarray(X, dtype=float)
-    pos, vel = X[0:3].T, X[3:6].T
-    R = _rotations(X[6:10].T)
+    xl = state_layout(len(scene.legs))
+    pos, vel = xl.get(X, "position").T, xl.get(X, "velocity").T
+    R = quat_to_rot_np(xl.get(X, "attitude").T, normalise=False)
     force = np.zeros((X.shape[1], 3))
     hinge = np.zeros(X.shape[1])
     stroke = np.zeros(X.shape[1])
     for j, leg in enumerate(scene.legs):
-        base = BODY_STATE + LEG_STATE * j
-        force += X[base + 4:base + 7].T
-        rho = np.einsum("tki,tk->ti", R, X[base:base + 3].T - pos)
+        force += xl.get(X, "force_body", j).T
+        rho = np.einsum("tki,tk->ti", R, xl.get(X, "foot", j).T - pos)
         strut = rho - leg.hinge
         length = np.linalg.norm(strut, axis=1)
         e_S = strut / length[:, None]
@@ -222,12 +213,6 @@ def reduce_states(scene: Scene, X) -> dict:
     return {"position": pos, "velocity": vel,
             "decel": np.linalg.norm(force, axis=1) / scene.body.mass,
             "hinge": hinge, "stroke": stroke}
-
-
-def default_parameters(scene: Scene) -> np.ndarray:
-    """The scene's leg parameters p, in ``build_model(scene).param_names`` order."""
-    vals = [leg.param_values for leg in scene.legs]
-    return np.concatenate(vals) if vals else np.zeros(0)
 
 
 def simulate_chunked(model, scene: Scene, dt: float, *, chunk: int = CHUNK,
@@ -272,7 +257,7 @@ def simulate_chunked(model, scene: Scene, dt: float, *, chunk: int = CHUNK,
     build = time.perf_counter() - started
     calls = -(-steps // length)
     x0 = initial_state(scene)
-    p = default_parameters(scene)
+    p = default_p(scene)
 
     def one_pass(keep):
         # only the rollout calls are timed; each chunk is reduced as it comes

@@ -50,7 +50,8 @@ import numpy as np
 
 from .contact import contact_step_expr
 from .layout import (BODY_OUT, BODY_STATE, LEG_OUT, LEG_STATE, MODES, ParamLayout, default_p,
-                     param_layout, quat_exp, quat_mul, quat_to_rot, quat_to_rot_np)
+                     output_layout, param_layout, quat_exp, quat_mul, quat_to_rot,
+                     quat_to_rot_np, state_layout)
 from .obstacles import closest_obstacle
 from .scene import Scene
 
@@ -166,8 +167,8 @@ def build_model(scene: Scene) -> StepModel:
     n_legs = len(legs)
     params = param_layout(scene)
     names, offsets = _leg_params(scene)
-    nx = BODY_STATE + LEG_STATE * n_legs
-    ny = BODY_OUT + LEG_OUT * n_legs
+    xl, yl = state_layout(n_legs), output_layout(n_legs)
+    nx, ny = xl.size, yl.size
 
     X = ca.SX.sym("x", nx)
     p = ca.SX.sym("p", params.size)
@@ -181,24 +182,25 @@ def build_model(scene: Scene) -> StepModel:
     friction = scene.mu > 0          # μ = 0 literally: the frictionless graph, no μ entry
     mu = params.get(p, "mu") if friction else 0.0
 
-    pos, vel, quat, omega = X[0:3], X[3:6], X[6:10], X[10:13]
-    feet = [X[BODY_STATE + LEG_STATE * j: BODY_STATE + LEG_STATE * (j + 1)]
-            for j in range(n_legs)]
+    body = xl.unpack(X)
+    pos, vel, quat, omega = (body[k] for k in ("position", "velocity", "attitude",
+                                                "angular_velocity"))
+    feet = [{f: body[f][j] for f in ("foot", "contact", "force_body")} for j in range(n_legs)]
     rest = [ca.DM(leg.rest_foot) for leg in legs]
 
     R = quat_to_rot(quat)
 
     def body_frame_foot(j, foot, R_, pos_):
-        in_contact = foot[3] > 0.5
-        return ca.if_else(in_contact, R_.T @ (foot[0:3] - pos_), rest[j])
+        in_contact = foot["contact"] > 0.5
+        return ca.if_else(in_contact, R_.T @ (foot["foot"] - pos_), rest[j])
 
     # 1. half kick with the stored forces
     force = ca.DM.zeros(3)
     torque = ca.DM.zeros(3)
     for j, foot in enumerate(feet):
         rho = body_frame_foot(j, foot, R, pos)
-        force = force + foot[4:7]
-        torque = torque + ca.cross(rho, foot[4:7])
+        force = force + foot["force_body"]
+        torque = torque + ca.cross(rho, foot["force_body"])
     acc = g + R @ force / m
     vel_h = vel + h / 2 * acc
     omega_h = omega + h / 2 * (inertia_inv @ (torque - ca.cross(omega, inertia @ omega)))
@@ -216,7 +218,7 @@ def build_model(scene: Scene) -> StepModel:
     for j, (leg, foot) in enumerate(zip(legs, feet)):
         fns = leg.functions()
         p_leg = p[offsets[j][0]:offsets[j][1]]
-        in_contact = foot[3] > 0.5
+        in_contact = foot["contact"] > 0.5
         # free foot: where does its unloaded position cross the surface?
         free0 = pos + R @ rest[j]
         free1 = pos1 + R1 @ rest[j]
@@ -229,7 +231,7 @@ def build_model(scene: Scene) -> StepModel:
         touches = d1 < 0
         active = ca.logic_or(in_contact, touches)
 
-        r_s = ca.if_else(in_contact, foot[0:3], touch)        # world point of the plane
+        r_s = ca.if_else(in_contact, foot["foot"], touch)        # world point of the plane
         rho_s = body_frame_foot(j, foot, R, pos)               # foot, body frame
         _, normal_w, _ = closest_obstacle(scene.obstacles, r_s)
         l = R1.T @ (r_s - pos1) - rho_s                        # §3: l_j, exact kinematics
@@ -256,26 +258,29 @@ def build_model(scene: Scene) -> StepModel:
         foot_w = ca.if_else(stays, foot_proj, foot_w)
         rho1 = ca.if_else(stays, R1.T @ (foot_w - pos1), rho1)
         P1 = ca.if_else(stays, out["P"], ca.DM.zeros(3))
-        new_feet.append(ca.vertcat(foot_w, ca.if_else(stays, 1.0, 0.0), P1))
+        new_feet.append(dict(foot=foot_w, contact=ca.if_else(stays, 1.0, 0.0), force_body=P1))
         force1 = force1 + P1
         torque1 = torque1 + ca.cross(rho1, P1)
 
         slipping = ca.dot(out["k"], out["k"]) > 0
         mode = ca.if_else(stays, ca.if_else(slipping, 2.0, 1.0),
                           ca.if_else(active, 3.0, 0.0))
-        geo = fns["strut_geometry"](rho1)
-        L_, dS, beta, gamma, e_S = geo[0], geo[1], geo[2], geo[3], geo[4]
-        outputs.append(ca.vertcat(ca.if_else(stays, 1.0, 0.0), mode, R1 @ P1,
-                                  ca.if_else(stays, normal_w, ca.DM.zeros(3)), R1 @ e_S,
-                                  dS, beta, gamma - leg.gamma0))
+        geo = fns["strut_geometry"].call(dict(r=rho1))
+        outputs.append(dict(contact=ca.if_else(stays, 1.0, 0.0), mode=mode, force=R1 @ P1,
+                            normal=ca.if_else(stays, normal_w, ca.DM.zeros(3)),
+                            axis=R1 @ geo["e_S"], stroke=geo["delta_S"], beta=geo["beta"],
+                            gamma_deflection=geo["gamma"] - leg.gamma0))
 
     # 4. second half kick with the new forces
     acc1 = g + R1 @ force1 / m
     vel1 = vel_h + h / 2 * acc1
     omega1 = omega_h + h / 2 * (inertia_inv @ (torque1 - ca.cross(omega_h, inertia @ omega_h)))
 
-    x_next = ca.vertcat(pos1, vel1, quat1, omega1, *new_feet)
-    y = ca.vertcat(acc1, *outputs)
+    x_next = xl.pack(position=pos1, velocity=vel1, attitude=quat1, angular_velocity=omega1,
+                     **{f: [foot[f] for foot in new_feet] for f in ("foot", "contact",
+                                                                    "force_body")})
+    y = yl.pack(acceleration=acc1, **{f.name: [o[f.name] for o in outputs]
+                                       for f in yl.leg_fields})
     step = ca.Function("touchdown_step", [X, p, h], [x_next, y], ["x", "p", "dt"],
                        ["x_next", "y"])
     return StepModel(step=step, scene=scene, nx=nx, ny=ny, np=params.size, param_names=names,
@@ -288,11 +293,13 @@ def build_model(scene: Scene) -> StepModel:
 def initial_state(scene: Scene) -> np.ndarray:
     """State vector of the scene's initial conditions, all feet free."""
     b = scene.body
-    x = [b.position, b.velocity, b.attitude, b.angular_velocity]
     R = _rot_np(b.attitude)
-    for leg in scene.legs:
-        x += [b.position + R @ leg.rest_foot, [0.0], np.zeros(3)]
-    return np.concatenate([np.ravel(v) for v in x]).astype(float)
+    n = len(scene.legs)
+    return state_layout(n).pack(
+        position=b.position, velocity=b.velocity, attitude=b.attitude,
+        angular_velocity=b.angular_velocity,
+        foot=[b.position + R @ leg.rest_foot for leg in scene.legs], contact=[0.0] * n,
+        force_body=[np.zeros(3)] * n)
 
 
 def _rot_np(q):
@@ -369,13 +376,14 @@ def equilibrium_state(scene: Scene, acceleration=(0.0, 0.0, 0.0), p=None,
     pos = sol[0:3]
     quat = np.asarray(ca.evalf(ca.substitute(q, z, ca.DM(sol))), dtype=float).ravel()
     R = _rot_np(quat)
-    state = [pos, np.zeros(3), quat, np.zeros(3)]
+    forces = []
     for j, (leg, pt) in enumerate(zip(scene.legs, pts)):
         rho = R.T @ (pt - pos)
-        P = np.asarray(leg.functions()["strut_force"](rho, np.zeros(3),
-                       p[offsets[j][0]:offsets[j][1]])).ravel()
-        state += [pt, [1.0], P]
-    return np.concatenate([np.ravel(s) for s in state])
+        forces.append(np.asarray(leg.functions()["strut_force"](
+            rho, np.zeros(3), p[offsets[j][0]:offsets[j][1]])).ravel())
+    return state_layout(len(scene.legs)).pack(
+        position=pos, velocity=np.zeros(3), attitude=quat, angular_velocity=np.zeros(3),
+        foot=pts, contact=[1.0] * len(pts), force_body=forces)
 
 
 def _body_stiffness(model: StepModel) -> ca.Function:
@@ -393,13 +401,14 @@ def _body_stiffness(model: StepModel) -> ca.Function:
         X = ca.SX.sym("x", model.nx)
         p = ca.SX.sym("p", model.np)
         z = ca.SX.sym("z", 6)
-        pos, R = X[0:3], quat_to_rot(X[6:10])
+        xl = state_layout(model.n_legs)
+        pos, R = xl.get(X, "position"), quat_to_rot(xl.get(X, "attitude"))
         R_z = quat_to_rot(quat_exp(z[3:6])) @ R
         pos_z = pos + z[0:3]
         wrench = ca.SX.zeros(6)
         for j, leg in enumerate(scene.legs):
-            foot = X[BODY_STATE + LEG_STATE * j: BODY_STATE + LEG_STATE * (j + 1)]
-            held = ca.if_else(foot[3] > 0.5, foot[0:3], pos + R @ ca.DM(leg.rest_foot))
+            held = ca.if_else(xl.get(X, "contact", j) > 0.5, xl.get(X, "foot", j),
+                              pos + R @ ca.DM(leg.rest_foot))
             rho = R_z.T @ (held - pos_z)
             P = leg.functions()["strut_force"](rho, ca.DM.zeros(3),
                                                p[offsets[j][0]:offsets[j][1]])
@@ -430,7 +439,7 @@ def stable_dt(model: StepModel, x, p=None) -> float:
         raise ValueError(f"`x` must have shape ({model.nx},), got {x.shape}.")
     p = _default_p(model.scene) if p is None else np.asarray(p, dtype=float)
     K = np.asarray(_body_stiffness(model)(x, p), dtype=float)
-    R = _rot_np(x[6:10] / np.linalg.norm(x[6:10]))
+    R = quat_to_rot_np(state_layout(model.n_legs).get(x, "attitude"))
     body = model.scene.body
     M_inv = np.zeros((6, 6))
     M_inv[:3, :3] = np.eye(3) / body.mass
@@ -635,8 +644,9 @@ def _default_p(scene):
 
 def _normals(model, y):
     N = model.n_legs
-    legs_y = np.asarray(y, float).ravel()[BODY_OUT:].reshape(N, LEG_OUT)
-    return legs_y[:, 0] > 0.5, legs_y[:, 5:8]
+    y = np.asarray(y, float).ravel()
+    yl = output_layout(N)
+    return yl.legs(y, "contact") > 0.5, yl.legs(y, "normal")
 
 
 def _simulate_adaptive(model, x0, p, eps, progress, stability=0.0):
