@@ -59,6 +59,7 @@ import numpy as np
 
 from symcushion import report
 from symcushion.characteristics import Linear
+from symcushion.contact import METHODS
 from symcushion.obstacles import Plane, Sphere, closest_obstacle
 from symcushion.scene import Body, Scene, symmetric_legs
 from symcushion.layout import quat_to_rot, quat_to_rot_np, state_layout
@@ -70,7 +71,6 @@ ROOT = Path(__file__).resolve().parent.parent
 TABLE = ROOT / "figures" / "hard_cases.md"
 DOC = ROOT / "docs" / "hard-cases.md"
 SECTION = "Results"
-METHODS = ("paper", "robust", "implicit")
 G = 9.81
 
 # -- tolerances of the checks (docs/hard-cases.md says why each is what it is) --

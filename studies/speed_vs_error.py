@@ -70,6 +70,7 @@ import numpy as np
 
 from symcushion import report
 from symcushion.codegen import CompiledModel, compiled_model
+from symcushion.contact import METHODS
 from symcushion.scene import Scene, load_scene
 from symcushion.layout import default_p, quat_to_rot_np, state_layout
 from symcushion.simulate import build_model, initial_state
@@ -83,8 +84,6 @@ DOC = ROOT / "docs" / "speed-vs-error.md"
 BUILD = ROOT / "build" / "speed_vs_error"
 QUICK_OUT = Path("/tmp/symcushion-sve/quick")
 
-#: The contact steps of symcushion.contact, in the order of the tables.
-METHODS = ("paper", "robust", "implicit")
 #: Δt of the grid (s), issue 8: 1e-2 down to 1e-5, about three per decade.
 DT_GRID = (1e-2, 3e-3, 1e-3, 3e-4, 1e-4, 3e-5, 1e-5)
 QUICK_DT_GRID = (3e-3, 1e-3, 3e-4)

@@ -43,7 +43,7 @@ import numpy as np
 from .contact import METHODS, contact_step
 from .layout import default_p, param_layout
 from .scene import Scene, load_scene
-from .simulate import StepModel, build_model, initial_state
+from .touchdown import StepModel, build_model, initial_state
 
 __all__ = ["CFLAGS", "CODEGEN_OPTIONS", "WARNINGS", "CompiledModel", "Generated",
            "build_program", "compiled_model", "find_compiler", "generate", "load_compiled"]

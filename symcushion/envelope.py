@@ -53,7 +53,7 @@ from .layout import (BODY_OUT, BODY_STATE, LEG_OUT, LEG_STATE, body_axis_np, def
                      param_layout, quat_from_axis_angle_np, quat_mul_np, quat_to_rot_np,
                      state_layout)
 from .measures import measures_function
-from .simulate import StepModel, build_model
+from .touchdown import StepModel, build_model
 
 __all__ = ["VARIABLES", "SUMMARY", "CLASSES", "Range", "Limits", "EnvelopeStudy",
            "EnvelopeResult", "load_study", "study_from_dict", "sample_unit", "sobol",

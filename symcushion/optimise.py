@@ -52,7 +52,7 @@ from .obstacles import closest_obstacle
 from .scene import Scene, _Table, read_toml, scene_from_dict
 from .layout import quat_to_rot_np, state_layout
 from .measures import measures_function
-from .simulate import build_model, initial_state
+from .touchdown import build_model, initial_state
 
 if sys.version_info >= (3, 11):
     import tomllib

@@ -19,6 +19,7 @@ from typing import Sequence
 import numpy as np
 
 from .characteristics import Crushable, Curve, Linear, PiecewiseLinear
+from .contact import METHODS  # re-exported: scenes name their contact step
 from .obstacles import ImplicitSurface, Obstacle, Plane, Sphere, Terrain
 from .strut import HingedStrut
 
@@ -29,8 +30,6 @@ else:  # pragma: no cover
 
 __all__ = ["Body", "Scene", "symmetric_legs", "load_scene", "scene_from_dict", "METHODS"]
 
-#: Contact methods of ``symcushion.contact``.
-METHODS = ("paper", "robust", "implicit")
 
 #: Where a step replaces the obstacle by its tangent plane (§3): ``"start"``,
 #: at the foot's contact point at the start of the step (the literal reading,

@@ -17,7 +17,9 @@ def _random_quats(rng, n):
 
 
 def test_block_sizes_and_reexport():
-    from symcushion import simulate as sim
+    import symcushion.simulate  # noqa: F401  (the compatibility module)
+    import sys
+    sim = sys.modules["symcushion.simulate"]
     assert (layout.BODY_STATE, layout.LEG_STATE, layout.BODY_OUT, layout.LEG_OUT) == (13, 7, 3, 14)
     assert (sim.BODY_STATE, sim.LEG_STATE, sim.BODY_OUT, sim.LEG_OUT) == (13, 7, 3, 14)
     assert sim.MODES == {0: "free", 1: "stick", 2: "slip", 3: "lift-off"}

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..layout import quat_to_rot_np
 from ..scene import Scene
-from ..simulate import initial_state
+from ..touchdown import initial_state
 
 __all__ = ["PeerRun", "output_times", "leg_kinematics", "trajectory_deflection",
            "rebound_speed"]
