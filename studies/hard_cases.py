@@ -1,4 +1,4 @@
-"""Hard-case battery (issue 8, part 3): does each contact method survive the cases that break simulators?
+"""Hard-case battery: does each contact method survive the cases that break simulators?
 
 Twelve cases, each run with the three contact steps (the step as printed,
 the robust step, the exact implicit Coulomb step):
@@ -24,7 +24,7 @@ the robust step, the exact implicit Coulomb step):
     an oblique landing with μ = 2.
 ``near_singular``
     legs whose struts pass within ~1e-3 rad of their hinge's polar axis
-    (e_S ∥ e_n, NOTES §2), where D_p grows like 1/|e_S × e_n|.
+    (e_S ∥ e_n, docs/paper-notes.md §2), where D_p grows like 1/|e_S × e_n|.
 ``tiny_step`` / ``large_step``
     a compliant lander on a dome with Δt = 1e-6 and Δt = 1e-2.
 ``fast_impact``
@@ -163,7 +163,7 @@ def case_stiff_axial(method, full=True):
 
     The feet slide, so the stiff axial direction is not held and the explicit
     body update stays stable at the paper's step; the contact step sees
-    cond(D_p) ≈ 1e8 (NOTES §3.7).
+    cond(D_p) ≈ 1e8 (docs/paper-notes.md §3.7).
     """
     return Setup(_stiff_scene(method, 0.05, 0.3, "stiff_axial"), symmetry="axial")
 
@@ -287,7 +287,7 @@ NEAR_SINGULAR_SPEED = 2.0
 
 
 def case_near_singular(method, full=True):
-    """Struts that swing past their hinge's polar axis within ~1e-3 rad (NOTES §2)."""
+    """Struts that swing past their hinge's polar axis within ~1e-3 rad (docs/paper-notes.md §2)."""
     splay = np.deg2rad(30)
     e0 = np.array([np.sin(splay), 0.0, -np.cos(splay)])
     outward = splay + NEAR_SINGULAR_GAMMA0
@@ -490,7 +490,7 @@ class Stats:
 def _singular_distance(scene, traj):
     """Smallest angle (rad) of a strut in contact to its hinge's singular sets.
 
-    The sets of NOTES §2: e_S ∥ e_n (e_β undefined, D_p ~ 1/|e_S × e_n|) and
+    The sets of docs/paper-notes.md §2: e_S ∥ e_n (e_β undefined, D_p ~ 1/|e_S × e_n|) and
     e_S ⊥ e_n (the kink of γ); the angle is min(∠(e_S, ±e_n), |90° − ∠|).
     """
     R = quat_to_rot_np(traj.attitude, normalise=False)

@@ -1,4 +1,4 @@
-"""How much accuracy does a second of computing buy? The speed-vs-error study (issue 8).
+"""How much accuracy does a second of computing buy? The speed-vs-error study.
 
 Question: for the Fig. 3 scene (μ = 0), the Fig. 4 scene (μ = 0.05) and a
 four-legged lander on a 10° slope (``studies/lander_slope.toml``), how does
@@ -84,7 +84,7 @@ DOC = ROOT / "docs" / "speed-vs-error.md"
 BUILD = ROOT / "build" / "speed_vs_error"
 QUICK_OUT = Path("/tmp/symcushion-sve/quick")
 
-#: Δt of the grid (s), issue 8: 1e-2 down to 1e-5, about three per decade.
+#: Δt of the grid (s): 1e-2 down to 1e-5, about three per decade.
 DT_GRID = (1e-2, 3e-3, 1e-3, 3e-4, 1e-4, 3e-5, 1e-5)
 QUICK_DT_GRID = (3e-3, 1e-3, 3e-4)
 #: Δt of the reference (implicit step, compiled): 10× below the finest grid
@@ -114,7 +114,7 @@ FLOOR_FACTOR = 10.0
 PENALTY_RTOLS = (1e-4, 1e-6, 1e-8, 1e-10)
 MUJOCO_TIMESTEPS = (1e-3, 3e-4, 1e-4, 3e-5, 1e-5)
 PEER_OUTPUT_DT = 1e-4
-#: The paper's bound on the Fig. 3 rebound, |Δy′| < 1e-2 m/s, and the aim of issue 8.
+#: The paper's bound on the Fig. 3 rebound, |Δy′| < 1e-2 m/s, and the aim of the study.
 REBOUND_BOUND = 1e-2
 REBOUND_AIM = 1e-4
 
@@ -126,7 +126,7 @@ SCENES = {
     "lander_slope": {"file": "lander_slope.toml", "rebound": "max_up", "deflection": "stroke"},
 }
 
-#: Columns of the CSV; the first five are those issue 8 requires.
+#: Columns of the CSV; the first five are the ones the study is built around.
 REQUIRED_COLUMNS = ("scene", "method", "dt", "rebound_error", "wall_per_sim_second")
 COLUMNS = REQUIRED_COLUMNS + (
     "peak_decel_error", "peak_deflection_error", "trajectory_error", "contact_step",

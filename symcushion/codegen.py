@@ -123,7 +123,7 @@ _CONTACT_DOC = (
      "contact": "1 in compressive contact, 0 after lift-off"})
 _CONTACT_VARIANTS = {
     "paper": ("(1.8)-(1.15) as printed", "§1"),
-    "robust": ("(1.8)-(1.15) fixed per NOTES §3", "§2"),
+    "robust": ("(1.8)-(1.15) fixed per docs/paper-notes.md §3", "§2"),
     "implicit": ("the exact backward-Euler Coulomb step", "§3"),
 }
 _STRUT_DOC = {

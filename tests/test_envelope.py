@@ -1,4 +1,4 @@
-"""Touchdown stability envelope (symcushion.envelope, issue 9).
+"""Touchdown stability envelope (symcushion.envelope).
 
 One compiled build of the example lander, shortened to SHORT_DURATION,
 serves every test that runs cases (module-scoped cache folder): the sampler

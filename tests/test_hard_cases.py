@@ -1,4 +1,4 @@
-"""Hard-case battery (issue 8): one test per case and contact method (studies/hard_cases.py).
+"""Hard-case battery: one test per case and contact method (studies/hard_cases.py).
 
 Each test runs the study's case builder and checker and asserts (1) that the
 implicit method passes every check of the case, and (2) that the run agrees

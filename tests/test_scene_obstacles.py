@@ -133,7 +133,7 @@ def friction_lag_after_turn(method):
     """Angle (deg) between each foot-0 friction force and its slip, after the slip turns.
 
     A sled slides along +x for 0.1 s; then its velocity is turned to +y. Exact
-    Coulomb friction turns with the slip at once (NOTES §3.6).
+    Coulomb friction turns with the slip at once (docs/paper-notes.md §3.6).
     """
     import sys
 

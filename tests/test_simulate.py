@@ -1,4 +1,4 @@
-"""Touchdown simulator: closed forms, invariants and robustness (issue 4)."""
+"""Touchdown simulator: closed forms, invariants and robustness."""
 from pathlib import Path
 
 import numpy as np

@@ -7,7 +7,7 @@ rollout, the metrics read the trajectory as ``symcushion.simulate`` and
 ``symcushion.reproduce`` define it, errors vanish against the reference
 itself and shrink with Δt on the Fig. 3 scene, the order fit and the
 equal-error interpolation recover known answers, and the CSV has the columns
-issue 8 requires. Short VM runs only (a few seconds in all).
+the study promises. Short VM runs only (a few seconds in all).
 """
 from __future__ import annotations
 

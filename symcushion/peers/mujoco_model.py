@@ -19,7 +19,7 @@ of mass. Each leg is a child body at the hinge point r_h with
 
 Every joint's spring reference is the rest pose (q = 0), so the unloaded leg
 hangs along e₀. At rest the model has symcushion's stiffness
-D_p = S′ e_S e_Sᵀ + (M_β′/L₀²) e_β e_βᵀ + (M_γ′/L₀²) e_γ e_γᵀ (NOTES §2); away
+D_p = S′ e_S e_Sᵀ + (M_β′/L₀²) e_β e_βᵀ + (M_γ′/L₀²) e_γ e_γᵀ (docs/paper-notes.md §2); away
 from rest the two hinges differ from (2.1) at second order in the swing.
 
 Obstacles are static geoms: a sphere for a Sphere, a plane for a Plane, each

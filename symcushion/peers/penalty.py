@@ -131,7 +131,7 @@ def default_stiffness(scene: Scene) -> float:
 
     k = max(m·max(|g|, g₀)/(N·δ), r·max_j λ_max(D_p,j)), δ =
     :data:`STATIC_PENETRATION`, r = :data:`LEG_STIFFNESS_RATIO`, D_p,j the
-    rest stiffness of leg j (its closed form, NOTES §2).
+    rest stiffness of leg j (its closed form, docs/paper-notes.md §2).
     """
     g = max(float(np.linalg.norm(scene.gravity)), STANDARD_GRAVITY)
     weight_rule = scene.body.mass * g / (len(scene.legs) * STATIC_PENETRATION)
