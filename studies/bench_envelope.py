@@ -43,7 +43,7 @@ ROOT = Path(__file__).resolve().parent.parent
 STUDY = ROOT / "studies" / "envelope_lander.toml"
 DOCS = ROOT / "docs" / "envelope.md"
 CACHE = ROOT / "build" / "envelope"
-#: The issue's target: 10,000 two-second touchdowns.
+#: The target of the envelope work: 10,000 two-second touchdowns.
 TARGET_CASES = 10_000
 #: Cases of the accuracy comparison and the Δt of the reference.
 ACCURACY_CASES = 400

@@ -32,6 +32,7 @@ import os
 import shutil
 import subprocess
 import sys
+import tempfile
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -45,8 +46,9 @@ from .layout import default_p, param_layout
 from .scene import Scene, load_scene
 from .touchdown import StepModel, build_model, initial_state
 
-__all__ = ["CFLAGS", "CODEGEN_OPTIONS", "WARNINGS", "CompiledModel", "Generated",
-           "build_program", "compiled_model", "find_compiler", "generate", "load_compiled"]
+__all__ = ["CFLAGS", "CODEGEN_OPTIONS", "WARNINGS", "CachedBuild", "CompiledModel", "Generated",
+           "build_program", "compile_cached", "compiled_model", "find_compiler", "generate",
+           "load_compiled"]
 
 #: Base names of the two generated sources, compiled in parallel: the contact
 #: steps and struts, and the touchdown step with its rollout (the large one).
@@ -618,6 +620,74 @@ def _build(out: Path, sources: dict, with_program: bool, fingerprint: str,
 # ---------------------------------------------------------------------------
 # loading compiled code
 # ---------------------------------------------------------------------------
+@dataclass
+class CachedBuild:
+    """A library compiled by :func:`compile_cached`.
+
+    Attributes
+    ----------
+    library, folder : Path
+        The shared library and its cache folder.
+    digest : str
+        SHA-256 of the source, flags and compiler (the folder's fingerprint).
+    flags : list of str
+    compiler : str
+    fresh : bool
+        True if this call compiled it, False if it was in the cache.
+    """
+
+    library: Path
+    folder: Path
+    digest: str
+    flags: list
+    compiler: str
+    fresh: bool
+
+
+def compile_cached(f: ca.Function, source_name: str, library_name: str, cache_dir: Path,
+                   stem: str, note: str | None = None) -> CachedBuild:
+    """Generate C for ``f`` and compile it once per fingerprint into ``cache_dir``.
+
+    The source is fingerprinted with the flags (:data:`CFLAGS`,
+    :data:`WARNINGS`) and the compiler and built into
+    ``cache_dir/<stem>-<fingerprint>/`` unless that folder already holds the
+    library, so repeated runs, tests and Dask workers reuse one build and two
+    different Functions never share a path (a process cannot load two
+    libraries from one path). The library is written under a temporary name
+    and renamed, so concurrent builders agree. ``note`` (if given) is printed
+    to stderr before compiling.
+    """
+    cc = find_compiler()
+    if cc is None:
+        raise FileNotFoundError("no C compiler: set $CC or install gcc; "
+                                f"{library_name} runs compiled code only.")
+    with tempfile.TemporaryDirectory(prefix="symcushion-cache-") as tmp:
+        cg = ca.CodeGenerator(source_name, dict(CODEGEN_OPTIONS, with_header=False))
+        cg.add(f)
+        cg.generate(tmp + os.sep)
+        source = (Path(tmp) / source_name).read_bytes()
+    flags = [*CFLAGS, *WARNINGS]
+    digest = hashlib.sha256(source + " ".join(flags).encode() + cc.encode()).hexdigest()
+    folder = Path(cache_dir) / f"{stem}-{digest[:16]}"
+    library = folder / library_name
+    if library.is_file():
+        return CachedBuild(library, folder, digest, flags, cc, fresh=False)
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / source_name).write_bytes(source)
+    if note:
+        print(f"compiling {note} in {folder} ...", file=sys.stderr, flush=True)
+    partial = folder / f".{library_name}.{os.getpid()}"
+    argv = [cc, *flags, "-shared", str(folder / source_name), "-o", str(partial), "-lm"]
+    done = subprocess.run(argv, capture_output=True, text=True)
+    if done.returncode != 0:
+        raise RuntimeError(f"compiling {folder / source_name} failed ({' '.join(argv)}):\n"
+                           f"{done.stderr}{done.stdout}")
+    if done.stderr.strip():
+        print(f"gcc printed, compiling {source_name}:\n{done.stderr}", file=sys.stderr)
+    os.replace(partial, library)
+    return CachedBuild(library, folder, digest, flags, cc, fresh=True)
+
+
 def load_compiled(path) -> dict:
     """The compiled Functions of a build folder, by name, via ``casadi.external``.
 

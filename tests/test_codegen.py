@@ -10,9 +10,7 @@ Skipped, with the reason, only when no C compiler is found.
 from __future__ import annotations
 
 import json
-import os
 import subprocess
-import sys
 from pathlib import Path
 
 import casadi as ca
@@ -25,8 +23,6 @@ from symcushion.contact import contact_step
 from symcushion.scene import load_scene
 from symcushion.simulate import build_model, initial_state, simulate
 
-sys.path.insert(0, os.path.dirname(__file__))
-import oracle_contact as oc  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 FIG3 = ROOT / "studies" / "fig3.toml"
@@ -119,9 +115,9 @@ def test_cached_build_is_not_recompiled(built, scene):
 # compiled == SX
 # ---------------------------------------------------------------------------
 @pytest.mark.parametrize("method", ["paper", "robust", "implicit"])
-def test_contact_steps_equal_sx(built, method):
+def test_contact_steps_equal_sx(built, method, random_contact_cases):
     _, fns = built
-    cases = oc.random_cases(np.random.default_rng(6), CONTACT_CASES)
+    cases = random_contact_cases(6, CONTACT_CASES)
     reference = contact_step(method)
     compiled = fns[reference.name()]
     for i in range(CONTACT_CASES):
@@ -206,12 +202,12 @@ def test_standalone_program_options(built, tmp_path):
     assert bad.returncode == 2 and "`-n` must be a positive integer" in bad.stderr
 
 
-def test_own_c_program_calls_the_contact_steps(built, tmp_path):
+def test_own_c_program_calls_the_contact_steps(built, tmp_path, random_contact_cases):
     """build_program links a C file (here bench_contact.c) with the generated objects."""
     gen, _ = built
     source = Path(codegen.__file__).parent / "c" / "bench_contact.c"
     program = codegen.build_program(gen.out_dir, source)
-    cases = oc.random_cases(np.random.default_rng(9), 50)
+    cases = random_contact_cases(9, 50)
     n = len(cases["mu"])
     table = np.column_stack([cases["P0"], cases["Dp"].transpose(0, 2, 1).reshape(n, 9),
                              cases["n"], cases["l"], cases["mu"], cases["u0"]])

@@ -54,15 +54,13 @@ for the full report.
 
 from __future__ import annotations
 
-import os
 import sys
 import time
 
 import numpy as np
 import pytest
 
-sys.path.insert(0, os.path.dirname(__file__))
-import oracle_contact as oc  # noqa: E402
+import oracle_contact as oc  # on sys.path: pytest prepends this folder (conftest.py)
 
 TOL = 1e-12
 CASES_PER_KIND = 3000          # x 4 kinds = 12,000 cases per method

@@ -337,3 +337,19 @@ def test_mu_sampled_continuously_from_one_library(raw, study, cache):
                         cache_dir=cache)
     for name in ("max_stroke", "peak_decel", "slide", "max_tilt_deg"):
         np.testing.assert_array_equal(alone[name], result.columns[name][[3, 11]])
+
+
+def test_wilson_interval_is_the_closed_form():
+    """SciPy's Wilson interval equals the score formula (centre ± half-width) to round-off."""
+    z = 1.959963984540054                               # the 97.5 % normal quantile
+    for k, n in ((0, 1), (3, 7), (6380, 10000), (10000, 10000)):
+        phat = k / n
+        denom = 1 + z * z / n
+        centre = (phat + z * z / (2 * n)) / denom
+        half = z / denom * math.sqrt(phat * (1 - phat) / n + z * z / (4 * n * n))
+        p, lo, hi = ev.wilson_interval(k, n)
+        assert abs(lo - (centre - half)) < 1e-14 and abs(hi - (centre + half)) < 1e-14
+    with pytest.raises(ValueError, match="`k` and `n`"):
+        ev.wilson_interval(5, 3)
+    with pytest.raises(ValueError, match="`confidence`"):
+        ev.wilson_interval(1, 3, confidence=95)

@@ -5,19 +5,15 @@ import pytest
 
 from symcushion.layout import output_layout, quat_from_axis_angle_np, state_layout
 from symcushion.measures import MEASURES, measures_function
-from symcushion.scene import load_scene
 from symcushion.simulate import build_model, initial_state
 
-from pathlib import Path
-
-ROOT = Path(__file__).resolve().parent.parent
 #: Agreement of quantities computed two ways in double precision from O(1..10) inputs.
 ROUND_OFF = 1e-12
 
 
 @pytest.fixture(scope="module")
-def fig4():
-    return load_scene(ROOT / "studies" / "fig4.toml").with_(method="robust", duration=0.1)
+def fig4(fig4_scene):
+    return fig4_scene.with_(method="robust", duration=0.1)
 
 
 def test_measures_read_the_named_fields(fig4):
@@ -47,8 +43,8 @@ def test_measures_read_the_named_fields(fig4):
     assert np.all((pen >= 0) & (pen < ROUND_OFF))
 
 
-def test_penetration_of_a_foot_below_a_plane():
-    scene = load_scene(ROOT / "studies" / "lander_slope.toml")
+def test_penetration_of_a_foot_below_a_plane(lander_scene):
+    scene = lander_scene
     n = len(scene.legs)
     xl = state_layout(n)
     x = initial_state(scene)
@@ -78,8 +74,8 @@ def test_gravity_mass_and_mu_are_inputs(fig4):
     np.testing.assert_allclose(np.asarray(X1), np.asarray(X2), rtol=ROUND_OFF, atol=ROUND_OFF)
 
 
-def test_frictionless_scene_has_no_mu_entry():
-    scene = load_scene(ROOT / "studies" / "fig3.toml")
+def test_frictionless_scene_has_no_mu_entry(fig3_scene):
+    scene = fig3_scene
     model = build_model(scene)
     assert "mu" not in model.param_names
     with pytest.raises(KeyError, match="frictionless"):
