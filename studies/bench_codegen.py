@@ -1,4 +1,4 @@
-"""What does generated C buy over the CasADi VM and over NumPy? (issue 6)
+"""What does generated C buy over the CasADi VM and over NumPy?
 
 Question: symcushion's Functions run in CasADi's virtual machine (the SX
 Function) or, generated to C by ``symcushion.codegen``, as compiled code.
@@ -71,7 +71,7 @@ DROP_SECONDS = 1.0
 #: Loops of the standalone program's step loop per run (-r): its inner
 #: time is the best loop, so one slow loop does not count.
 PROGRAM_REPEAT = 20
-#: Targets of issue 6, reported, not asserted.
+#: Targets of the code generation, reported, not asserted.
 TARGET_CONTACT_RATIO = 100.0
 TARGET_STEP_US = 4.0
 
@@ -230,7 +230,7 @@ def measure_drop(scene, out_dir: Path) -> dict:
     model = build_model(scene)
     steps = scene.steps
     x0 = initial_state(scene)
-    p = np.zeros(model.np)
+    p = model.default_p
     vm_rollout, c_rollout = model.rollout(steps), compiled.rollout(steps)
 
     def vm_loop():

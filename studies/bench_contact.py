@@ -1,7 +1,7 @@
 """How close are the printed and the robust contact steps to the exact one, and what do they cost?
 
 Question: the printed step (1.8)-(1.15) (``contact_step_paper``), the same
-step with NOTES §3 items 1-5 fixed (``contact_step_robust``) and the exact
+step with docs/paper-notes.md §3 items 1-5 fixed (``contact_step_robust``) and the exact
 backward-Euler Coulomb step (``contact_step_implicit``) all map
 (P0, D_p, n, l, mu, u0) to the force P at the end of a step. How far is each
 from the implicit one, in plane-parallel motion (the case the paper derives)

@@ -15,7 +15,7 @@ tangent plane at the end, 'implicit' at 2 ms and 1 ms, and both methods at
 0.25 ms as a check, against the reference 'implicit' at 0.5 ms — classes
 that change, the confusion between classes, P(stable) with its Wilson
 interval and a paired (McNemar) test of the change, and the CPU per case of
-each variant; plus the marginal case of issue 9 in every variant.
+each variant; plus the marginal case of the envelope study in every variant.
 
 Each writes its section of docs/envelope.md (``symcushion.report``).
 
@@ -35,14 +35,15 @@ import casadi as ca
 import numpy as np
 
 from symcushion import report
-from symcushion.envelope import CLASSES, CONFIDENCE, build_envelope, classify, evaluate, \
-    initial_states, load_study, run_batch, run_envelope, sample_conditions, wilson_interval
+from symcushion.envelope import (CLASSES, CONFIDENCE, build_envelope, case_params, classify,
+                                 evaluate, initial_states, load_study, run_batch, run_envelope,
+                                 sample_conditions, wilson_interval)
 
 ROOT = Path(__file__).resolve().parent.parent
 STUDY = ROOT / "studies" / "envelope_lander.toml"
 DOCS = ROOT / "docs" / "envelope.md"
 CACHE = ROOT / "build" / "envelope"
-#: The issue's target: 10,000 two-second touchdowns.
+#: The target of the envelope work: 10,000 two-second touchdowns.
 TARGET_CASES = 10_000
 #: Cases of the accuracy comparison and the Δt of the reference.
 ACCURACY_CASES = 400
@@ -57,7 +58,7 @@ METHOD_VARIANTS = (("robust", "start", 2e-3), ("robust", "end", 2e-3),
                    ("implicit", "end", 5e-4), ("implicit", "end", 2.5e-4))
 #: The reference of the comparison: the exact backward-Euler Coulomb step.
 METHOD_REFERENCE = ("implicit", "end", 5e-4)
-#: The marginal case of issue 9 (case 2462 of the study's 10,000, seed 2024):
+#: The marginal case of the envelope study (case 2462 of the study's 10,000, seed 2024):
 #: 1.06 m/s down, 0.14 m/s nearly uphill, 13.8° slope; 'robust' settles,
 #: 'implicit' tips over.
 MARGINAL_CASE = 2462
@@ -206,13 +207,13 @@ def _run_variant(base, variant, cases: dict, marginal: dict, threads: int) -> tu
     started = time.perf_counter()
     library = build_envelope(study.scene, CACHE, progress=True)
     build = time.perf_counter() - started
-    p = np.concatenate([leg.param_values for leg in study.scene.legs])
     out = []
     for k, conditions in enumerate((cases, marginal)):
         x0, gravity = initial_states(study, conditions)
+        p = case_params(study.scene, conditions["mu"], gravity)
         load = os.getloadavg()[0]
         cpu, wall = _cpu(), time.perf_counter()
-        x_end, summary = run_batch(library, x0, gravity, p, dt, threads if k == 0 else 1)
+        x_end, summary = run_batch(library, x0, p, dt, threads if k == 0 else 1)
         cpu, wall = _cpu() - cpu, time.perf_counter() - wall
         r = classify(summary, x_end, gravity, x0, study.limits, len(study.scene.legs))
         r.update(cpu_per_case=cpu / x0.shape[1], wall=wall, load=load, build=build)
@@ -415,7 +416,7 @@ def methods(threads: int) -> str:
         "Agreement of classes: implicit 2 ms vs 1 ms "
         f"{agree(implicit_dts[0], implicit_dts[1]):.1%}; "
         f"implicit 1 ms vs 0.5 ms {agree(implicit_dts[1], reference):.1%}.\n\n"
-        f"The marginal case of issue 9 (case {MARGINAL_CASE} of the study: "
+        f"The marginal case of the envelope study (case {MARGINAL_CASE} of the study: "
         + ", ".join(f"{k} {marginal[k][0]:.4g}" for k in ("vertical_speed", "horizontal_speed",
                                                         "heading_deg", "slope_deg", "yaw_deg",
                                                         "tilt_deg", "tilt_azimuth_deg", "mu"))

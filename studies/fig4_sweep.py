@@ -59,7 +59,9 @@ from pathlib import Path
 import numpy as np
 
 from symcushion.characteristics import Linear
-from symcushion.scene import METHODS, load_scene, symmetric_legs
+from symcushion.layout import state_layout
+from symcushion.contact import METHODS
+from symcushion.scene import load_scene, symmetric_legs
 from symcushion.simulate import build_model, initial_state, simulate
 from symcushion.reproduce import measure_claims
 
@@ -139,10 +141,11 @@ def sweep_one(method, stiffness, speeds=SPEEDS, duration=DURATION):
         method=method, mu=0.05, duration=duration)
     model = build_model(scene)
     x_touch = initial_state(scene)                    # every foot just touching the dome
+    velocity = state_layout(len(scene.legs)).slice("velocity")
     rows = []
     for speed in speeds:
         x0 = x_touch.copy()
-        x0[3:6] = (0.0, 0.0, -speed)                  # body velocity; the step is unchanged
+        x0[velocity] = (0.0, 0.0, -speed)             # body velocity; the step is unchanged
         traj = simulate(scene, model=model, x0=x0)
         outcome, flights = classify(traj)
         restitution = np.nan

@@ -128,7 +128,7 @@ def summary(rows: list[dict]) -> str:
         f"stiffness buys and what it costs. Conditioning is not the issue: the condition "
         f"number of D_p equals the ratio at rest and is "
         f"{chosen['cond_loaded'] / chosen['ratio']:.2f}× the ratio at the loaded pose, and only at 1e6–1e8 does the printed contact step "
-        f"(1.15) start to lose accuracy (NOTES §3.7). Rigidity improves as 1/ratio: the axial "
+        f"(1.15) start to lose accuracy (docs/paper-notes.md §3.7). Rigidity improves as 1/ratio: the axial "
         f"stroke is {decade(below['same_load'])} of the bending deflection under the same load "
         f"at {decade(below['ratio'])} (a percent-level error in where the foot is), "
         f"{decade(chosen['same_load'])} at {decade(RIGID_AXIAL_RATIO)} — "

@@ -2,10 +2,27 @@
 
 Implements and extends V. F. Khvostov (1976), "On the dynamic interaction of
 shock-absorbing supports with a rigid obstacle" (Izv. AN SSSR, MTT).
-This module only re-exports the public API.
+This module only re-exports the public API (docs/architecture.md maps the
+modules behind it). ``symcushion.simulate`` is the function
+:func:`~symcushion.driver.simulate`; ``from symcushion.simulate import ...``
+still reads the compatibility module of the same name.
 """
+from . import envelope, optimise
 from .characteristics import Crushable, Curve, Linear, PiecewiseLinear
+from .contact import METHODS, contact_step, solve_contact
+from .driver import Trajectory, save, simulate
+from .layout import MODES, output_columns, state_columns
+from .measures import measures_function
+from .obstacles import ImplicitSurface, Plane, Sphere, Terrain
+from .scene import Body, Scene, load_scene, scene_from_dict, symmetric_legs
 from .strut import HingedStrut
+from .touchdown import StepModel, build_model, equilibrium_state, initial_state, stable_dt
 
-__all__ = ["Crushable", "Curve", "Linear", "PiecewiseLinear", "HingedStrut"]
+__all__ = ["Crushable", "Curve", "Linear", "PiecewiseLinear", "HingedStrut",
+           "METHODS", "contact_step", "solve_contact",
+           "Plane", "Sphere", "ImplicitSurface", "Terrain",
+           "Body", "Scene", "load_scene", "scene_from_dict", "symmetric_legs",
+           "StepModel", "build_model", "initial_state", "equilibrium_state", "stable_dt",
+           "Trajectory", "simulate", "save", "MODES", "state_columns", "output_columns",
+           "measures_function", "envelope", "optimise"]
 __version__ = "0.1.0"

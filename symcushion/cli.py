@@ -21,7 +21,8 @@ def _cmd_reproduce(args):
 
 def _cmd_simulate(args):
     from .scene import load_scene
-    from .simulate import build_model, save, simulate
+    from .driver import save, simulate
+    from .touchdown import build_model
 
     scene = load_scene(args.scene)
     if args.method:

@@ -32,6 +32,7 @@ import os
 import shutil
 import subprocess
 import sys
+import tempfile
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -41,11 +42,13 @@ import casadi as ca
 import numpy as np
 
 from .contact import METHODS, contact_step
+from .layout import default_p, param_layout
 from .scene import Scene, load_scene
-from .simulate import StepModel, build_model, initial_state
+from .touchdown import StepModel, build_model, initial_state
 
-__all__ = ["CFLAGS", "CODEGEN_OPTIONS", "WARNINGS", "CompiledModel", "Generated",
-           "build_program", "compiled_model", "find_compiler", "generate", "load_compiled"]
+__all__ = ["CFLAGS", "CODEGEN_OPTIONS", "WARNINGS", "CachedBuild", "CompiledModel", "Generated",
+           "build_program", "compile_cached", "compiled_model", "find_compiler", "generate",
+           "load_compiled"]
 
 #: Base names of the two generated sources, compiled in parallel: the contact
 #: steps and struts, and the touchdown step with its rollout (the large one).
@@ -122,7 +125,7 @@ _CONTACT_DOC = (
      "contact": "1 in compressive contact, 0 after lift-off"})
 _CONTACT_VARIANTS = {
     "paper": ("(1.8)-(1.15) as printed", "§1"),
-    "robust": ("(1.8)-(1.15) fixed per NOTES §3", "§2"),
+    "robust": ("(1.8)-(1.15) fixed per docs/paper-notes.md §3", "§2"),
     "implicit": ("the exact backward-Euler Coulomb step", "§3"),
 }
 _STRUT_DOC = {
@@ -142,7 +145,10 @@ _TOUCHDOWN_ARGS = {
          "axes (3, rad/s); then per leg the foot's world\n"
          "position (3, m), contact flag (1), force on the\n"
          "foot in body axes (3, N)",
-    "p": "leg parameters (manifest 'param_names'),\nmay be empty",
+    "p": "parameters (manifest 'param_names'): the legs'\n"
+         "curve parameters, then mu (friction scenes),\n"
+         "gravity (3, m/s^2), mass (kg), inertia xx, yy,\n"
+         "zz, xy, xz, yz (kg m^2)",
     "dt": "time step (s)",
     "x_next": "state after the step",
     "y": "acceleration of the centre of mass (3, m/s^2);\n"
@@ -259,11 +265,6 @@ def _c_doubles(values) -> str:
     vals = [repr(float(v)) for v in np.ravel(values)] or ["0.0"]
     rows = [", ".join(vals[i:i + 4]) for i in range(0, len(vals), 4)]
     return "{\n    " + ",\n    ".join(rows) + "\n}"
-
-
-def _default_params(scene: Scene) -> np.ndarray:
-    vals = [leg.param_values for leg in scene.legs]
-    return np.concatenate(vals) if vals else np.zeros(0)
 
 
 def _state_names(n_legs: int) -> list:
@@ -415,7 +416,7 @@ def _write_scene_data(out_dir: Path, scene: Scene, model: StepModel, steps: int)
         raise RuntimeError(f"state layout changed: {model.nx} states, {len(names)} names; "
                            "update symcushion.codegen._LEG_STATE_NAMES.")
     x0 = initial_state(scene)
-    p = _default_params(scene)
+    p = default_p(scene)
     name_rows = ",\n    ".join(_c_string(n) for n in names)
     text = f"""/*
  * scene_data.h -- scene '{scene.name}' for the standalone program touchdown (main.c).
@@ -619,6 +620,74 @@ def _build(out: Path, sources: dict, with_program: bool, fingerprint: str,
 # ---------------------------------------------------------------------------
 # loading compiled code
 # ---------------------------------------------------------------------------
+@dataclass
+class CachedBuild:
+    """A library compiled by :func:`compile_cached`.
+
+    Attributes
+    ----------
+    library, folder : Path
+        The shared library and its cache folder.
+    digest : str
+        SHA-256 of the source, flags and compiler (the folder's fingerprint).
+    flags : list of str
+    compiler : str
+    fresh : bool
+        True if this call compiled it, False if it was in the cache.
+    """
+
+    library: Path
+    folder: Path
+    digest: str
+    flags: list
+    compiler: str
+    fresh: bool
+
+
+def compile_cached(f: ca.Function, source_name: str, library_name: str, cache_dir: Path,
+                   stem: str, note: str | None = None) -> CachedBuild:
+    """Generate C for ``f`` and compile it once per fingerprint into ``cache_dir``.
+
+    The source is fingerprinted with the flags (:data:`CFLAGS`,
+    :data:`WARNINGS`) and the compiler and built into
+    ``cache_dir/<stem>-<fingerprint>/`` unless that folder already holds the
+    library, so repeated runs, tests and Dask workers reuse one build and two
+    different Functions never share a path (a process cannot load two
+    libraries from one path). The library is written under a temporary name
+    and renamed, so concurrent builders agree. ``note`` (if given) is printed
+    to stderr before compiling.
+    """
+    cc = find_compiler()
+    if cc is None:
+        raise FileNotFoundError("no C compiler: set $CC or install gcc; "
+                                f"{library_name} runs compiled code only.")
+    with tempfile.TemporaryDirectory(prefix="symcushion-cache-") as tmp:
+        cg = ca.CodeGenerator(source_name, dict(CODEGEN_OPTIONS, with_header=False))
+        cg.add(f)
+        cg.generate(tmp + os.sep)
+        source = (Path(tmp) / source_name).read_bytes()
+    flags = [*CFLAGS, *WARNINGS]
+    digest = hashlib.sha256(source + " ".join(flags).encode() + cc.encode()).hexdigest()
+    folder = Path(cache_dir) / f"{stem}-{digest[:16]}"
+    library = folder / library_name
+    if library.is_file():
+        return CachedBuild(library, folder, digest, flags, cc, fresh=False)
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / source_name).write_bytes(source)
+    if note:
+        print(f"compiling {note} in {folder} ...", file=sys.stderr, flush=True)
+    partial = folder / f".{library_name}.{os.getpid()}"
+    argv = [cc, *flags, "-shared", str(folder / source_name), "-o", str(partial), "-lm"]
+    done = subprocess.run(argv, capture_output=True, text=True)
+    if done.returncode != 0:
+        raise RuntimeError(f"compiling {folder / source_name} failed ({' '.join(argv)}):\n"
+                           f"{done.stderr}{done.stdout}")
+    if done.stderr.strip():
+        print(f"gcc printed, compiling {source_name}:\n{done.stderr}", file=sys.stderr)
+    os.replace(partial, library)
+    return CachedBuild(library, folder, digest, flags, cc, fresh=True)
+
+
 def load_compiled(path) -> dict:
     """The compiled Functions of a build folder, by name, via ``casadi.external``.
 
@@ -740,5 +809,5 @@ def compiled_model(scene, out_dir, *, steps: int | None = None,
     info = json.loads((gen.out_dir / MANIFEST).read_text())
     return CompiledModel(step=fns["touchdown_step"], scene=scene, nx=info["nx"], ny=info["ny"],
                          np=info["np"], param_names=tuple(info["param_names"]),
-                         library=gen.library, compiled_steps=info["steps"],
+                         params=param_layout(scene), library=gen.library, compiled_steps=info["steps"],
                          _compiled_rollout=fns["touchdown_rollout"])

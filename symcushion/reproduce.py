@@ -17,11 +17,13 @@ from pathlib import Path
 import numpy as np
 
 from .scene import load_scene
-from .simulate import Trajectory, build_model, simulate
+from .contact import METHODS
+from .driver import Trajectory, simulate
+from .touchdown import build_model
 
 __all__ = ["Claims", "measure_claims", "reproduce", "METHODS_ORDER"]
 
-METHODS_ORDER = ("paper", "robust", "implicit")
+METHODS_ORDER = METHODS
 
 #: The paper's bounds for Fig. 3 (μ = 0).
 ALIGN_BOUND = 1e-4      # |α − γ| (rad)

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from .characteristics import Crushable, Curve, Linear, PiecewiseLinear
+from .contact import METHODS  # re-exported: scenes name their contact step
 from .obstacles import ImplicitSurface, Obstacle, Plane, Sphere, Terrain
 from .strut import HingedStrut
 from .formula import Formula, FormulaError
@@ -33,8 +34,6 @@ else:  # pragma: no cover
 __all__ = ["Body", "Scene", "SceneError", "symmetric_legs", "load_scene", "scene_from_dict",
            "METHODS"]
 
-#: Contact methods of ``symcushion.contact``.
-METHODS = ("paper", "robust", "implicit")
 
 #: Where a step replaces the obstacle by its tangent plane (§3): ``"start"``,
 #: at the foot's contact point at the start of the step (the literal reading,

@@ -13,7 +13,7 @@ e_γ = e_S × (e_n × e_S)/|e_S × (e_n × e_S)|, γ = arcsin(e_n·e_γ).
 This module owns the geometry of one strut and the CasADi Functions built on
 it. It knows nothing of contact or of the body's motion.
 
-Orientation of the elements (NOTES §2): users give every element as a
+Orientation of the elements (docs/paper-notes.md §2): users give every element as a
 resistance curve f(x) of its own deflection x (δ_S, β, γ − γ₀) with a
 positive slope meaning restoring; the strut applies
 S = f_S(δ_S), M_β = f_β(β), M_γ = −sign(e₀·e_n) f_γ(γ − γ₀), for which the
@@ -46,7 +46,7 @@ __all__ = ["HingedStrut", "RIGID_AXIAL_RATIO", "SINGULAR_ANGLE", "leg_geometry_e
 
 #: Axial stiffness of a "rigid" rod relative to its bending stiffness scale,
 #: k_S = ratio · max(M_β′, M_γ′)/L₀². The foot is massless, so the contact
-#: step itself copes with any ratio (NOTES §3.7: 1e8 works); what a large
+#: step itself copes with any ratio (docs/paper-notes.md §3.7: 1e8 works); what a large
 #: ratio costs is the time step of the *body's* motion, which sees an axial
 #: mode of frequency √(k_S/m): the explicit-in-velocity integrator is stable
 #: for ω Δt < 2. At 1e3 the axial stroke is a thousandth of the bending
@@ -57,7 +57,7 @@ RIGID_AXIAL_RATIO = 1e3
 
 #: Smallest angle (rad) allowed between the rest direction e₀ and the lines
 #: where (2.1) is singular (e₀ ∥ e_n: e_β undefined; e₀ ⊥ e_n: γ has a kink,
-#: NOTES §2). 1° keeps |e_S × e_n| and |e_S·e_n| above 0.017 at rest.
+#: docs/paper-notes.md §2). 1° keeps |e_S × e_n| and |e_S·e_n| above 0.017 at rest.
 SINGULAR_ANGLE = np.deg2rad(1.0)
 
 
@@ -80,7 +80,7 @@ def leg_geometry_expr(r, r_h, e0, en):
     e_beta = _unit(ca.cross(e_S, en))                                  # (2.1)
     e_gamma = _unit(ca.cross(e_S, ca.cross(en, e_S)))                  # (2.1)
     beta = -ca.asin(ca.dot(e0, e_beta))                                # (2.1)
-    # (2.1), NOTES §1: γ = arcsin(e_n·e_γ) = arcsin|e_S × e_n|, evaluated as
+    # (2.1), docs/paper-notes.md §1: γ = arcsin(e_n·e_γ) = arcsin|e_S × e_n|, evaluated as
     # atan2(|e_S × e_n|, |e_S·e_n|): the same angle, but arcsin near 1 loses
     # digits like eps/(90° − γ)² in its derivative within 1° of e_S ⊥ e_n.
     gamma = ca.atan2(ca.norm_2(ca.cross(e_S, en)), ca.fabs(ca.dot(e_S, en)))
@@ -141,7 +141,7 @@ class HingedStrut:
         if np.pi / 2 - angle < SINGULAR_ANGLE:
             raise ValueError(
                 f"`e0` is perpendicular to `en` (angle {np.rad2deg(angle):.4g}° from the "
-                "axis line): γ of (2.1) has a kink there (NOTES §2); tilt `en` so that the "
+                "axis line): γ of (2.1) has a kink there (docs/paper-notes.md §2); tilt `en` so that the "
                 "strut makes an angle strictly between 0° and 90° with it.")
         for name, curve in (("S", S), ("M_beta", M_beta), ("M_gamma", M_gamma)):
             if curve is not None and not isinstance(curve, Curve):
@@ -159,7 +159,7 @@ class HingedStrut:
         else:
             self.rigid = False
         self.axial_ratio = float(axial_ratio)
-        self.sigma = float(np.sign(cos0))  # orientation sign of M_γ, NOTES §2
+        self.sigma = float(np.sign(cos0))  # orientation sign of M_γ, docs/paper-notes.md §2
         self.gamma0 = float(np.arctan2(np.linalg.norm(np.cross(self.e0, self.en)),
                                        abs(cos0)))  # γ(e₀), as in leg_geometry_expr
         elements, offset = [], 0
@@ -225,7 +225,7 @@ class HingedStrut:
         for el in self.elements:
             out[el.name] = el.curve.force(x[el.name], rate[el.name], self._theta(el, p),
                                           branch_x=x_branch[el.name])
-        out["M_gamma"] = -self.sigma * out["M_gamma"]                  # NOTES §2
+        out["M_gamma"] = -self.sigma * out["M_gamma"]                  # docs/paper-notes.md §2
         return out
 
     def force_expr(self, r, v, p, r_branch=None):
@@ -355,7 +355,7 @@ class HingedStrut:
         return np.asarray(out, dtype=float)
 
     def rest_stiffness_closed_form(self) -> np.ndarray:
-        """D_p at the unloaded rest pose, closed form of NOTES §2.
+        """D_p at the unloaded rest pose, closed form of docs/paper-notes.md §2.
 
         D_p = S′ e_S e_Sᵀ + (M_β′/L₀²) e_β e_βᵀ + (m′/L₀²) e_γ e_γᵀ, with the
         slopes of the loading branches at zero deflection.

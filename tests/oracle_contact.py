@@ -2,7 +2,7 @@
 
 This module is a *test oracle*: a plain, scalar NumPy transcription of the
 three contact steps of Khvostov (1976) section 1, written line by line from
-``docs/contact-spec.md`` and ``../shared/paper/NOTES.md`` without looking at
+``docs/contact-spec.md`` and ``docs/paper-notes.md`` without looking at
 ``symcushion/contact.py``.  It is not imported by the package and imports
 nothing from it; ``tests/test_contact_oracle.py`` compares the package's
 CasADi Functions with it.
@@ -142,7 +142,7 @@ def _direction_e(P3, Dp, n):
 # ---------------------------------------------------------------------------
 
 def paper_step(P0, Dp, n, l, mu, u0, path=None, force=None):
-    """Spec section 1: the printed step (1.8)-(1.15), NOTES section 1 readings."""
+    """Spec section 1: the printed step (1.8)-(1.15), docs/paper-notes.md §1 readings."""
     P0, Dp, n, l, mu, u0 = _prep(P0, Dp, n, l, mu, u0)
     d = _Decisions(path, force)
     m2 = 1.0 + mu * mu
@@ -201,7 +201,7 @@ def paper_step(P0, Dp, n, l, mu, u0, path=None, force=None):
     if d("C3>0", C3 > 0):
         if d("A3!=0", A3 != 0):                          # exact comparison
             sH = d("sign H", _sign(H))                  # sign(0) = 0
-            # max(., 0): the one departure from print (NOTES 3.3)
+            # max(., 0): the one departure from print (docs/paper-notes.md §3.3)
             k3 = (-B3 + math.sqrt(max(B3 * B3 - A3 * C3, 0.0)) * sH) / A3
         elif d("B3!=0", B3 != 0):
             k3 = -C3 / (2.0 * B3)
@@ -219,7 +219,7 @@ def paper_step(P0, Dp, n, l, mu, u0, path=None, force=None):
 
 
 # ---------------------------------------------------------------------------
-# 2. the robust step: NOTES section 3 items 1-5 fixed
+# 2. the robust step: docs/paper-notes.md §3 items 1-5 fixed
 # ---------------------------------------------------------------------------
 
 def _cone_cleanup(P, n, mu):
@@ -232,7 +232,7 @@ def _cone_cleanup(P, n, mu):
 
 
 def robust_step(P0, Dp, n, l, mu, u0, path=None, force=None):
-    """Spec section 2: the printed method with NOTES section 3 items 1-5 fixed."""
+    """Spec section 2: the printed method with docs/paper-notes.md §3 items 1-5 fixed."""
     P0, Dp, n, l, mu, u0 = _prep(P0, Dp, n, l, mu, u0)
     d = _Decisions(path, force)
     m2 = 1.0 + mu * mu
@@ -290,7 +290,7 @@ def robust_step(P0, Dp, n, l, mu, u0, path=None, force=None):
             if len(counts) == 2:
                 d("k2 choice", counts[1] < counts[0])          # recorded only
 
-    # 4. k3 by the closed-form roots (NOTES 3.3)
+    # 4. k3 by the closed-form roots (docs/paper-notes.md §3.3)
     d3 = l - k1 * s - k2 * l_tau
     P3 = P0 + Dp @ d3
     N = _dot(n, P3)

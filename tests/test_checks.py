@@ -25,7 +25,7 @@ def fig3(duration=0.1):
 def rollout(scene):
     """States X (nx, steps) and outputs Y (ny, steps) of the scene's fixed-step run."""
     model = build_model(scene)
-    X, Y = model.rollout(scene.steps)(initial_state(scene), np.zeros(model.np), scene.dt)
+    X, Y = model.rollout(scene.steps)(initial_state(scene), model.default_p, scene.dt)
     return model, np.asarray(X), np.asarray(Y), scene.dt * np.arange(1, scene.steps + 1)
 
 

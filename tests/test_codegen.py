@@ -10,9 +10,7 @@ Skipped, with the reason, only when no C compiler is found.
 from __future__ import annotations
 
 import json
-import os
 import subprocess
-import sys
 from pathlib import Path
 
 import casadi as ca
@@ -25,8 +23,6 @@ from symcushion.contact import contact_step
 from symcushion.scene import load_scene
 from symcushion.simulate import build_model, initial_state, simulate
 
-sys.path.insert(0, os.path.dirname(__file__))
-import oracle_contact as oc  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 FIG3 = ROOT / "studies" / "fig3.toml"
@@ -119,9 +115,9 @@ def test_cached_build_is_not_recompiled(built, scene):
 # compiled == SX
 # ---------------------------------------------------------------------------
 @pytest.mark.parametrize("method", ["paper", "robust", "implicit"])
-def test_contact_steps_equal_sx(built, method):
+def test_contact_steps_equal_sx(built, method, random_contact_cases):
     _, fns = built
-    cases = oc.random_cases(np.random.default_rng(6), CONTACT_CASES)
+    cases = random_contact_cases(6, CONTACT_CASES)
     reference = contact_step(method)
     compiled = fns[reference.name()]
     for i in range(CONTACT_CASES):
@@ -146,15 +142,15 @@ def test_touchdown_step_and_rollout_equal_sx(built, scene):
     _, fns = built
     model = build_model(scene)
     x0 = initial_state(scene)
-    X, _ = model.rollout(scene.steps)(x0, [], scene.dt)
+    X, _ = model.rollout(scene.steps)(x0, model.default_p, scene.dt)
     states = np.asarray(X).T
     rng = np.random.default_rng(8)
     for i in range(STEP_CASES):
         # states of the drop (feet free, landing, in contact), perturbed
         x = states[rng.integers(len(states))] * (1 + 1e-3 * rng.standard_normal(model.nx))
-        args = {"x": x, "p": np.zeros(0), "dt": scene.dt * rng.uniform(0.5, 2.0)}
+        args = {"x": x, "p": model.default_p, "dt": scene.dt * rng.uniform(0.5, 2.0)}
         _assert_same(fns["touchdown_step"], model.step, args, f"touchdown_step case {i}")
-    args = {"x0": x0, "p": np.zeros(0), "dt": scene.dt}
+    args = {"x0": x0, "p": model.default_p, "dt": scene.dt}
     _assert_same(fns["touchdown_rollout"], model.rollout(scene.steps), args, "touchdown_rollout")
 
 
@@ -165,8 +161,8 @@ def test_compiled_model_simulates_like_the_vm(built, scene):
     fast, slow = simulate(scene, model=compiled), simulate(scene)
     assert _rel_err(fast.position, slow.position) <= TRAJ_TOL
     # another N: the compiled step rolled out by mapaccum
-    X_c, _ = compiled.rollout(7)(initial_state(scene), [], scene.dt)
-    X_v, _ = build_model(scene).rollout(7)(initial_state(scene), [], scene.dt)
+    X_c, _ = compiled.rollout(7)(initial_state(scene), compiled.default_p, scene.dt)
+    X_v, _ = build_model(scene).rollout(7)(initial_state(scene), compiled.default_p, scene.dt)
     assert _rel_err(X_c, X_v) <= REL_TOL
 
 
@@ -186,7 +182,7 @@ def test_standalone_program_equals_python_rollout(built, scene, tmp_path):
     table = np.loadtxt(csv, delimiter=",", skiprows=1)
     model = build_model(scene)
     x0 = initial_state(scene)
-    X, _ = model.rollout(scene.steps)(x0, [], scene.dt)
+    X, _ = model.rollout(scene.steps)(x0, model.default_p, scene.dt)
     expected = np.column_stack([x0, np.asarray(X)]).T
     assert table.shape == (scene.steps + 1, 1 + model.nx)
     np.testing.assert_allclose(table[:, 0], scene.dt * np.arange(scene.steps + 1), rtol=0,
@@ -206,12 +202,12 @@ def test_standalone_program_options(built, tmp_path):
     assert bad.returncode == 2 and "`-n` must be a positive integer" in bad.stderr
 
 
-def test_own_c_program_calls_the_contact_steps(built, tmp_path):
+def test_own_c_program_calls_the_contact_steps(built, tmp_path, random_contact_cases):
     """build_program links a C file (here bench_contact.c) with the generated objects."""
     gen, _ = built
     source = Path(codegen.__file__).parent / "c" / "bench_contact.c"
     program = codegen.build_program(gen.out_dir, source)
-    cases = oc.random_cases(np.random.default_rng(9), 50)
+    cases = random_contact_cases(9, 50)
     n = len(cases["mu"])
     table = np.column_stack([cases["P0"], cases["Dp"].transpose(0, 2, 1).reshape(n, 9),
                              cases["n"], cases["l"], cases["mu"], cases["u0"]])
@@ -261,7 +257,11 @@ def test_tunable_scene_generates_clean_c(tmp_path):
     scene = load_scene(path)
     gen = codegen.generate(tmp_path / "out", scene)
     info = json.loads((gen.out_dir / codegen.MANIFEST).read_text())
-    assert info["np"] == 16 and info["functions"]["touchdown_rollout"]["in"]["p"] == "16"
+    # 16 curve parameters of the legs, then gravity (3), mass (1) and inertia (6): μ = 0
+    assert info["np"] == 16 + 10 and info["functions"]["touchdown_rollout"]["in"]["p"] == "26"
+    assert info["param_names"][16:] == ["gravity.x", "gravity.y", "gravity.z", "mass",
+                                        "inertia.xx", "inertia.yy", "inertia.zz", "inertia.xy",
+                                        "inertia.xz", "inertia.yz"]
     for source in [*gen.sources, gen.out_dir / "main.c"]:
         # the front end's warnings (the ones CasADi's code could trigger) without optimising
         run = subprocess.run([codegen.find_compiler(), "-std=c99", *codegen.WARNINGS,

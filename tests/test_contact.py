@@ -1,7 +1,7 @@
 """Tests of the contact steps in symcushion.contact (docs/contact-spec.md).
 
 Invariants (hypothesis), the exact implicit step, one test per weak point of
-the printed method (NOTES §3 items 1-5: each must fail with 'paper', checked
+the printed method (docs/paper-notes.md §3 items 1-5: each must fail with 'paper', checked
 by ``printed_step_fails``, and pass with 'robust'), the 3-D error (item 6),
 Jacobians, and the validation of :func:`solve_contact`.
 """
@@ -28,13 +28,13 @@ from symcushion.contact import (
 CONE_RTOL = 1e-10  # C(P) <= CONE_RTOL |P|^2 in contact (brief)
 NORMAL_RTOL = 1e-12  # n.delta = n.l to round-off, relative to |l| + |delta|
 RAY_RTOL = 1e-10  # mu = 0: |P_tau| <= RAY_RTOL |P| (the cone is the ray along n)
-COULOMB_RTOL = 1e-10  # P_tau parallel to g, NOTES §3.6 example
+COULOMB_RTOL = 1e-10  # P_tau parallel to g, docs/paper-notes.md §3.6 example
 RESIDUAL_RTOL = 1e-13  # implicit step converged, |R| / |P_t|
 
 SETTINGS = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 Z = np.array([0.0, 0.0, 1.0])
 def printed_step_fails(test):
-    """Run a NOTES §3 fix check: it must hold for 'robust' and must FAIL for 'paper'.
+    """Run a docs/paper-notes.md §3 fix check: it must hold for 'robust' and must FAIL for 'paper'.
 
     For 'paper' the test body's assertion is required to raise, so the weak
     point of the printed method is demonstrated, not assumed.
@@ -305,7 +305,7 @@ def test_implicit_coulomb_law(case):
 
 
 def test_implicit_notes_3_6_example():
-    """NOTES §3 item 6: D_p = 10 I, P0 on the cone, plane moves across the force."""
+    """docs/paper-notes.md §3 item 6: D_p = 10 I, P0 on the cone, plane moves across the force."""
     r = solve_contact("implicit", [0.3, 0.0, 1.0], 10 * np.eye(3), Z, [0.0, 0.01, 0.0], 0.3)
     expected = 0.3 * np.array([0.3, 0.1]) / np.sqrt(0.1)  # P_t = (0.3, 0.1, 1) returned radially
     np.testing.assert_allclose(r.P, [expected[0], expected[1], 1.0], rtol=0, atol=COULOMB_RTOL)
@@ -378,7 +378,7 @@ def test_implicit_poles_of_negative_tangential_stiffness():
 
 
 # ---------------------------------------------------------------------------
-# NOTES §3 items 1-5: fail with the printed step, pass with the robust one
+# docs/paper-notes.md §3 items 1-5: fail with the printed step, pass with the robust one
 # ---------------------------------------------------------------------------
 @pytest.mark.parametrize("method", ["paper", "robust"])
 @printed_step_fails
@@ -434,7 +434,7 @@ def test_item3_mu_zero_keeps_force_on_the_ray(method):
 @pytest.mark.parametrize("method", ["paper", "robust"])
 @printed_step_fails
 def test_item3_stiff_leg_cone_residual(method):
-    """A3 -> 0 with stiff axial and soft bending (ratio 1e6-1e8, NOTES §3.7)."""
+    """A3 -> 0 with stiff axial and soft bending (ratio 1e6-1e8, docs/paper-notes.md §3.7)."""
     rng = np.random.default_rng(1)
     cases = []
     for _ in range(300):

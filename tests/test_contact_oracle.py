@@ -54,15 +54,13 @@ for the full report.
 
 from __future__ import annotations
 
-import os
 import sys
 import time
 
 import numpy as np
 import pytest
 
-sys.path.insert(0, os.path.dirname(__file__))
-import oracle_contact as oc  # noqa: E402
+import oracle_contact as oc  # on sys.path: pytest prepends this folder (conftest.py)
 
 TOL = 1e-12
 CASES_PER_KIND = 3000          # x 4 kinds = 12,000 cases per method
@@ -427,7 +425,7 @@ def test_reproducer(name):
 
 
 def test_oracle_reproduces_notes_item6():
-    """NOTES 3 item 6 / spec section 3 check, on the oracle alone."""
+    """docs/paper-notes.md §3 item 6 / spec section 3 check, on the oracle alone."""
     P0, Dp, n = np.array([0.3, 0.0, 1.0]), 10.0 * np.eye(3), np.array([0.0, 0.0, 1.0])
     l, mu, u0 = np.array([0.0, 0.01, 0.0]), 0.3, np.array([0.03, 0.0, 0.1])
     _, P, _, c = oc.implicit_step(P0, Dp, n, l, mu, u0)

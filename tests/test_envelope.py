@@ -1,4 +1,4 @@
-"""Touchdown stability envelope (symcushion.envelope, issue 9).
+"""Touchdown stability envelope (symcushion.envelope).
 
 One compiled build of the example lander, shortened to SHORT_DURATION,
 serves every test that runs cases (module-scoped cache folder): the sampler
@@ -139,17 +139,17 @@ def test_initial_states_put_the_lowest_foot_at_the_clearance(study):
 # the slope frame and the compiled runs
 # ---------------------------------------------------------------------------
 def test_slope_frame_equals_a_scene_with_rotated_gravity(study):
-    """envelope_case's extra half kicks are velocity Verlet with the input gravity."""
+    """envelope_case with the slope frame's gravity in p equals a scene built with it."""
     steps = 40                                   # 80 ms: touchdown and the first stroke
     cond = {k: np.array([v]) for k, v in dict(
         vertical_speed=2.0, horizontal_speed=1.0, heading_deg=30.0, slope_deg=12.0,
         yaw_deg=20.0, tilt_deg=3.0, tilt_azimuth_deg=100.0, mu=study.scene.mu).items()}
     x0, g = ev.initial_states(study, cond)
     f = ev.envelope_function(build_model(study.scene), steps)
-    p = np.concatenate([leg.param_values for leg in study.scene.legs])
-    x_end, summary = f(x0[:, 0], p, study.scene.dt, g[:, 0])
+    p = ev.case_params(study.scene, cond["mu"], g)[:, 0]
+    x_end, summary = f(x0[:, 0], p, study.scene.dt)
     rotated = build_model(study.scene.with_(gravity=g[:, 0]))
-    X, _ = rotated.rollout(steps)(x0[:, 0], p, study.scene.dt)
+    X, _ = rotated.rollout(steps)(x0[:, 0], rotated.default_p, study.scene.dt)
     reference = np.asarray(X)[:, -1]
     assert float(summary[ev.SUMMARY.index("touched")]) == 1.0
     # relative per entry: the state mixes metres with feet forces of ~1e3 N
@@ -288,7 +288,7 @@ def _edit(raw, path, value):
     ("ranges.heading", [0.0, 90.0], "unknown field(s) ['heading']"),
     ("ranges.tilt_deg", {"distribution": "gauss", "mean": 0.0, "std": 1.0},
      "ranges.tilt_deg.distribution"),
-    ("ranges.mu", [0.3, 0.7], "ranges.mu"),
+    ("ranges.mu", [-0.1, 0.7], "ranges.mu"),
     ("sampling.method", "halton", "sampling.method"),
     ("sampling.n", 0, "sampling.n"),
     ("sampling.seed", -1, "sampling.seed"),
@@ -315,3 +315,41 @@ def test_mu_levels_are_accepted(raw):
 def test_missing_study_file_is_reported(tmp_path):
     with pytest.raises(FileNotFoundError, match="nope.toml"):
         ev.load_study(tmp_path / "nope.toml")
+
+
+@needs_cc
+def test_mu_sampled_continuously_from_one_library(raw, study, cache):
+    """A uniform μ range runs on one compiled library, μ entering through p; each
+    case equals the same touchdown evaluated alone with its μ."""
+    data = copy.deepcopy(raw)
+    data["scene"].update(duration=0.3, method="robust", dt=2e-3, tangent_plane="start")
+    data["sampling"]["n"] = 16
+    data["ranges"]["mu"] = [0.1, 0.9]
+    continuous = ev.study_from_dict(data, "mu_uniform.toml")
+    assert continuous.ranges["mu"].kind == "uniform"
+    mu = ev.sample_conditions(continuous)["mu"]
+    assert len(np.unique(mu)) == 16 and np.all((mu >= 0.1) & (mu <= 0.9))
+    libraries = ev._libraries(continuous, mu, cache, progress=False)
+    assert list(libraries) == [True]                   # one friction library for every μ
+    result = ev.run_envelope(continuous, threads=1, cache_dir=cache, progress=False)
+    cond = result.conditions
+    alone = ev.evaluate(continuous, {k: cond[k][[3, 11]] for k in ev.VARIABLES},
+                        cache_dir=cache)
+    for name in ("max_stroke", "peak_decel", "slide", "max_tilt_deg"):
+        np.testing.assert_array_equal(alone[name], result.columns[name][[3, 11]])
+
+
+def test_wilson_interval_is_the_closed_form():
+    """SciPy's Wilson interval equals the score formula (centre ± half-width) to round-off."""
+    z = 1.959963984540054                               # the 97.5 % normal quantile
+    for k, n in ((0, 1), (3, 7), (6380, 10000), (10000, 10000)):
+        phat = k / n
+        denom = 1 + z * z / n
+        centre = (phat + z * z / (2 * n)) / denom
+        half = z / denom * math.sqrt(phat * (1 - phat) / n + z * z / (4 * n * n))
+        p, lo, hi = ev.wilson_interval(k, n)
+        assert abs(lo - (centre - half)) < 1e-14 and abs(hi - (centre + half)) < 1e-14
+    with pytest.raises(ValueError, match="`k` and `n`"):
+        ev.wilson_interval(5, 3)
+    with pytest.raises(ValueError, match="`confidence`"):
+        ev.wilson_interval(1, 3, confidence=95)

@@ -1,13 +1,12 @@
-"""Hard-case battery (issue 8): one test per case and contact method (studies/hard_cases.py).
+"""Hard-case battery: one test per case and contact method (symcushion.studies.hard_cases).
 
 Each test runs the study's case builder and checker and asserts (1) that the
 implicit method passes every check of the case, and (2) that the run agrees
 with the committed table ``figures/hard_cases.md``: where the table says a
 method passes, it passes here; where it says FAIL, it fails here on the same
 checks. The tolerances are the study's (named constants in
-``studies/hard_cases.py``, justified there and in docs/hard-cases.md).
+``symcushion/studies/hard_cases.py``, justified there and in docs/hard-cases.md).
 """
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -18,10 +17,9 @@ from symcushion.obstacles import Plane
 from symcushion.scene import Body, Scene
 from symcushion.simulate import build_model, initial_state, simulate, stable_dt
 from symcushion.strut import HingedStrut
+from symcushion.studies import hard_cases as hc
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "studies"))
-import hard_cases as hc  # noqa: E402
 
 METHODS = hc.METHODS
 

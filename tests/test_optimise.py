@@ -1,4 +1,4 @@
-"""Design optimisation (issue 7): the ideal absorber, exact gradients, clear errors."""
+"""Design optimisation: the ideal absorber, exact gradients, clear errors."""
 import json
 from pathlib import Path
 

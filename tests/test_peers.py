@@ -1,4 +1,4 @@
-"""Peer simulators (issue 8): penalty contact by CVODES and MuJoCo, against symcushion."""
+"""Peer simulators: penalty contact by CVODES and MuJoCo, against symcushion."""
 import sys
 from pathlib import Path
 

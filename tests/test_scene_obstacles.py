@@ -131,17 +131,12 @@ def test_adaptive_driver_halves_where_normals_turn():
     assert adaptive.t[-1] == pytest.approx(0.3)
 
 
-def friction_lag_after_turn(method):
+def friction_lag_after_turn(method, sled_scene):
     """Angle (deg) between each foot-0 friction force and its slip, after the slip turns.
 
     A sled slides along +x for 0.1 s; then its velocity is turned to +y. Exact
-    Coulomb friction turns with the slip at once (NOTES §3.6).
+    Coulomb friction turns with the slip at once (docs/paper-notes.md §3.6).
     """
-    import sys
-
-    sys.path.insert(0, str(Path(__file__).parent))
-    from test_simulate import sled_scene
-
     scene = sled_scene(0.0, 0.3, method=method)
     x0 = equilibrium_state(scene, placement="nearest")
     x0[3:6] = [1.0, 0.0, 0.0]
@@ -157,13 +152,13 @@ def friction_lag_after_turn(method):
     return np.degrees(np.arccos(np.clip(cos, -1, 1)))
 
 
-def test_three_d_friction_direction_implicit_exact_paper_lags():
-    implicit = friction_lag_after_turn("implicit")
+def test_three_d_friction_direction_implicit_exact_paper_lags(sled_scene):
+    implicit = friction_lag_after_turn("implicit", sled_scene)
     assert np.max(implicit) < 1e-6
     # the printed step (and the robust reading, which keeps its k₁/k₂/k₃ chain) turn
     # the force only over several steps: measured lag > 10° right after the turn,
     # fading within 30 steps (docs/contact.md)
     for method in ("paper", "robust"):
-        lag = friction_lag_after_turn(method)
+        lag = friction_lag_after_turn(method, sled_scene)
         assert lag[1] > 10.0, (method, lag[:6])
         assert lag[-1] < 1.0, (method, lag[-5:])

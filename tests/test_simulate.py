@@ -1,4 +1,4 @@
-"""Touchdown simulator: closed forms, invariants and robustness (issue 4)."""
+"""Touchdown simulator: closed forms, invariants and robustness."""
 from pathlib import Path
 
 import numpy as np
@@ -6,7 +6,7 @@ import pytest
 
 from symcushion.characteristics import Linear
 from symcushion.obstacles import Plane, Sphere
-from symcushion.scene import Body, Scene, load_scene, symmetric_legs
+from symcushion.scene import Body, Scene, load_scene
 from symcushion.simulate import build_model, equilibrium_state, initial_state, simulate
 from symcushion.strut import HingedStrut
 
@@ -83,17 +83,7 @@ def test_spring_drop_matches_piecewise_closed_form_second_order():
     assert errors[1] < 5e-5
 
 
-def sled_scene(theta, mu, method="implicit"):
-    """Four vertical legs whose feet are level with the centre of mass (no pitching)."""
-    legs = symmetric_legs(4, 0.4, 0.5, 0.5, (0, 0, -1), (-0.6, 0, -0.8), S=Linear(1e5),
-                          M_beta=Linear(3e3), M_gamma=Linear(3e3), azimuth0=np.pi / 4)
-    attitude = [np.cos(theta / 2), 0, np.sin(theta / 2), 0]   # body z along the slope normal
-    body = Body(mass=40.0, inertia=[1e6, 1e6, 1e6], position=[0, 0, 0.01], attitude=attitude)
-    return Scene(body, legs, [Plane.inclined(theta)], mu=mu, method=method, dt=1e-3,
-                 duration=2.0)
-
-
-def test_body_on_incline_sticks_without_creep():
+def test_body_on_incline_sticks_without_creep(sled_scene):
     theta = np.deg2rad(15)
     # the sled is aligned with the slope and symmetric, so each foot carries −mg/4:
     # T/N = tan θ on every foot, inside the cone for μ = tan θ + 0.1
@@ -109,7 +99,7 @@ def test_body_on_incline_sticks_without_creep():
     assert np.max(np.abs(traj.foot - traj.foot[0])) < 1e-9
 
 
-def test_sled_slides_with_coulomb_acceleration():
+def test_sled_slides_with_coulomb_acceleration(sled_scene):
     theta, mu = np.deg2rad(20), 0.2
     scene = sled_scene(theta, mu)
     a = G * (np.sin(theta) - mu * np.cos(theta))
@@ -171,7 +161,7 @@ def test_rollout_equals_python_loop():
     scene = load_scene(ROOT / "studies" / "fig4.toml").with_(method="implicit", duration=0.2)
     model = build_model(scene)
     x = initial_state(scene)
-    p = np.zeros(model.np)
+    p = model.default_p
     X, _ = model.rollout(scene.steps)(x, p, scene.dt)
     X = np.asarray(X)
     for k in range(scene.steps):
@@ -180,7 +170,7 @@ def test_rollout_equals_python_loop():
         np.testing.assert_allclose(x, X[:, k], rtol=1e-12, atol=1e-12)
 
 
-def test_three_d_sliding_friction_opposes_slip():
+def test_three_d_sliding_friction_opposes_slip(sled_scene):
     scene = sled_scene(0.0, 0.3, method="implicit").with_(duration=0.3)
     x0 = equilibrium_state(scene, placement="nearest")
     x0[3:6] = [1.0, 0.5, 0.0]            # sideways

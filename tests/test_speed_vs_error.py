@@ -1,4 +1,4 @@
-"""Tests of the speed-vs-error study's measurements (studies/speed_vs_error.py).
+"""Tests of the speed-vs-error study's measurements (symcushion.studies.speed_vs_error).
 
 The study itself (timings, the full Δt grid, compiled code, peers) is a script
 whose numbers are reported, never asserted. These tests check what its
@@ -7,13 +7,11 @@ rollout, the metrics read the trajectory as ``symcushion.simulate`` and
 ``symcushion.reproduce`` define it, errors vanish against the reference
 itself and shrink with Δt on the Fig. 3 scene, the order fit and the
 equal-error interpolation recover known answers, and the CSV has the columns
-issue 8 requires. Short VM runs only (a few seconds in all).
+the study promises. Short VM runs only (a few seconds in all).
 """
 from __future__ import annotations
 
 import csv
-import importlib.util
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -22,24 +20,12 @@ import pytest
 from symcushion.reproduce import measure_claims
 from symcushion.scene import load_scene
 from symcushion.simulate import build_model, simulate
+from symcushion.studies import speed_vs_error as sve
 
 ROOT = Path(__file__).resolve().parent.parent
 FIG3 = ROOT / "studies" / "fig3.toml"
 
 
-def _load_study():
-    """studies/speed_vs_error.py as a module (studies are scripts, not package code)."""
-    name = "speed_vs_error_study"
-    if name in sys.modules:
-        return sys.modules[name]
-    spec = importlib.util.spec_from_file_location(name, ROOT / "studies" / "speed_vs_error.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module  # dataclasses look their module up while it executes
-    spec.loader.exec_module(module)
-    return module
-
-
-sve = _load_study()
 
 #: Fig. 3 up to just after the rebound (contact ends at 0.364 s, the second
 #: landing is at 0.466 s): the runs stay short.

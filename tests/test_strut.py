@@ -12,7 +12,7 @@ What is checked, and against what:
   (:func:`ref_geometry`, written from the paper, not from the module), and
   near the singular sets against the same transcription in 50-digit mpmath.
 * The rest pose: P = 0, D_p symmetric positive definite and equal to the
-  closed form of NOTES §2, for both signs of e₀·e_n.
+  closed form of docs/paper-notes.md §2, for both signs of e₀·e_n.
 * Loading/unloading branches, with the rate signs of the module docstring.
 * Input validation, the axially rigid rod, tunable curves.
 
@@ -87,7 +87,7 @@ def ref_geometry(hinge, e0, en, r):
 
     Written from the paper with different formulas from the module where two
     are possible: e_γ = (e_n − (e_S·e_n)e_S)/|…| (the triple product expanded)
-    and γ = atan2(|e_S × e_n|, |e_S·e_n|) (= arcsin(e_n·e_γ), NOTES §1).
+    and γ = atan2(|e_S × e_n|, |e_S·e_n|) (= arcsin(e_n·e_γ), docs/paper-notes.md §1).
     """
     d = np.asarray(r, float) - hinge
     L = np.linalg.norm(d)
@@ -132,7 +132,7 @@ def ref_force_linear(leg_spec, curves, r, v):
         k, f0, ku, fu0 = c
         loading = x[name] * rate[name] >= 0
         f[name] = (f0 + k * x[name]) if loading else (fu0 + ku * x[name])
-    M_gamma = -sigma * f["M_gamma"]                         # NOTES §2
+    M_gamma = -sigma * f["M_gamma"]                         # docs/paper-notes.md §2
     return (f["S"] * g["e_S"] + f["M_beta"] / g["L"] * g["e_beta"]
             + M_gamma / g["L"] * g["e_gamma"])
 
@@ -561,7 +561,7 @@ def test_accuracy_deep_inside_one_degree(which):
                 assert err_ad <= max(1e-14, PAR_LOSS * EPS / a), (degrees, sign, err_ad)
                 assert err_paper <= max(1e-14, PAR_LOSS * EPS / a), (degrees, sign, err_paper)
                 assert rel_err(ad, paper) <= 1e-14
-                # D_p ~ M_β′/(L² α): the 1/α growth of NOTES §2
+                # D_p ~ M_β′/(L² α): the 1/α growth of docs/paper-notes.md §2
                 assert np.linalg.norm(ad) * a > 1e2
             else:
                 assert err_ad <= 1e-14, (degrees, sign, err_ad)
@@ -603,7 +603,7 @@ def test_exactly_on_the_singular_sets():
 
 
 # --------------------------------------------------------------------------
-# The rest pose (NOTES §2)
+# The rest pose (docs/paper-notes.md §2)
 # --------------------------------------------------------------------------
 
 def _restoring_curves(rng, smooth):
@@ -639,7 +639,7 @@ def _restoring_curves(rng, smooth):
 @pytest.mark.parametrize("smooth", [False, True], ids=["exact", "smooth"])
 def test_rest_pose(sign, smooth):
     """At r = r_h + L₀e₀ with no preload: P = 0; D_p symmetric positive
-    definite, = S′e_Se_Sᵀ + (M_β′/L₀²)e_βe_βᵀ + (m′/L₀²)e_γe_γᵀ (NOTES §2)."""
+    definite, = S′e_Se_Sᵀ + (M_β′/L₀²)e_βe_βᵀ + (m′/L₀²)e_γe_γᵀ (docs/paper-notes.md §2)."""
     rng = np.random.default_rng(11 + sign + 3 * smooth)
     for _ in range(25):
         e0, en = random_axis_pair(rng, sign)

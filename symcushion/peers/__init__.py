@@ -1,4 +1,4 @@
-"""Peer simulators of symcushion's scenes, for comparisons (issue 8).
+"""Peer simulators of symcushion's scenes, for comparisons.
 
 Two usual alternatives to symcushion's contact step, built from the same
 :class:`~symcushion.scene.Scene` and returning the same :class:`PeerRun`:

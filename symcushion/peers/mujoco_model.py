@@ -19,7 +19,7 @@ of mass. Each leg is a child body at the hinge point r_h with
 
 Every joint's spring reference is the rest pose (q = 0), so the unloaded leg
 hangs along e₀. At rest the model has symcushion's stiffness
-D_p = S′ e_S e_Sᵀ + (M_β′/L₀²) e_β e_βᵀ + (M_γ′/L₀²) e_γ e_γᵀ (NOTES §2); away
+D_p = S′ e_S e_Sᵀ + (M_β′/L₀²) e_β e_βᵀ + (M_γ′/L₀²) e_γ e_γᵀ (docs/paper-notes.md §2); away
 from rest the two hinges differ from (2.1) at second order in the swing.
 
 Obstacles are static geoms: a sphere for a Sphere, a plane for a Plane, each
@@ -40,7 +40,7 @@ import numpy as np
 from ..characteristics import Linear
 from ..obstacles import Plane, Sphere
 from ..scene import Scene
-from ..simulate import BODY_STATE, LEG_STATE
+from ..layout import state_layout
 from .run import (PeerRun, check_scene, leg_kinematics, output_times, positive, quat_to_rot_np,
                   state_vector)
 
@@ -282,17 +282,19 @@ def build_mjcf(scene: Scene, *, timestep=None, solref=None, solimp=None, foot_ma
 def _joint_state(scene: Scene, x0) -> tuple:
     """Free-joint qpos/qvel and leg joint angles from a symcushion state (13 + 7N)."""
     n_legs = len(scene.legs)
-    size = BODY_STATE + LEG_STATE * n_legs
+    size = state_layout(n_legs).size
     x0 = state_vector(scene, x0)
     if x0.size != size:
         raise ValueError(f"`x0` must be a finite symcushion state of {size} entries "
                          f"(initial_state(scene)), got {x0.size} entries.")
-    pos, vel, quat, omega = x0[0:3], x0[3:6], x0[6:10], x0[10:13]
+    xl = state_layout(n_legs)
+    pos, vel, quat, omega = (xl.get(x0, k) for k in ("position", "velocity", "attitude",
+                                                      "angular_velocity"))
     quat = quat / np.linalg.norm(quat)
     R = quat_to_rot_np(quat)
     legs = []
     for j, leg in enumerate(scene.legs):
-        r = x0[BODY_STATE + LEG_STATE * j: BODY_STATE + LEG_STATE * j + 3]
+        r = xl.get(x0, "foot", j)
         d = R.T @ (r - pos) - leg.hinge
         L = np.linalg.norm(d)
         e_S = d / L

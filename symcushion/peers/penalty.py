@@ -38,13 +38,14 @@ import numpy as np
 
 from ..obstacles import ImplicitSurface, Plane, Sphere
 from ..scene import Scene
-from ..simulate import BODY_STATE, LEG_STATE, quat_mul, quat_to_rot
+from ..layout import quat_mul, quat_to_rot, state_layout
+from ..layout import BODY_STATE, BODY_STATE_FIELDS, Field, VectorLayout
 from .run import (PeerRun, check_scene, leg_kinematics, nonnegative, output_times, positive,
                   quat_to_rot_np, state_vector)
 
 __all__ = ["penalty_simulate", "build_penalty_ode", "default_stiffness", "FOOT_MASS_RATIO",
            "STATIC_PENETRATION", "LEG_STIFFNESS_RATIO",
-           "DAMPING_RATIO", "SLIP_VELOCITY", "ATOL_LENGTH", "FOOT_STATE"]
+           "DAMPING_RATIO", "SLIP_VELOCITY", "ATOL_LENGTH", "FOOT_STATE", "penalty_layout"]
 
 #: Foot mass as a fraction of the body mass. Light enough that the feet carry
 #: a negligible share of the momentum (four feet at 1e-4 add 0.04 % to the
@@ -91,6 +92,16 @@ ATOL_LENGTH = 1e-3
 #: State of one foot in the penalty model: world position (3), velocity (3).
 FOOT_STATE = 6
 
+
+def penalty_layout(n_legs: int) -> VectorLayout:
+    """State of the penalty model: symcushion's body block, then per foot its world
+    position and velocity (the feet have a small mass here)."""
+    return VectorLayout(BODY_STATE_FIELDS, (
+        Field("foot", "m", "foot position, world frame", ("x", "y", "z")),
+        Field("foot_velocity", "m_s", "foot velocity, world frame", ("x", "y", "z"))),
+        n_legs, "penalty state")
+
+
 #: Largest number of CVODES steps between two output samples.
 MAX_STEPS_PER_SAMPLE = 1000000
 
@@ -120,7 +131,7 @@ def default_stiffness(scene: Scene) -> float:
 
     k = max(m·max(|g|, g₀)/(N·δ), r·max_j λ_max(D_p,j)), δ =
     :data:`STATIC_PENETRATION`, r = :data:`LEG_STIFFNESS_RATIO`, D_p,j the
-    rest stiffness of leg j (its closed form, NOTES §2).
+    rest stiffness of leg j (its closed form, docs/paper-notes.md §2).
     """
     g = max(float(np.linalg.norm(scene.gravity)), STANDARD_GRAVITY)
     weight_rule = scene.body.mass * g / (len(scene.legs) * STATIC_PENETRATION)
@@ -149,16 +160,17 @@ def build_penalty_ode(scene: Scene, *, stiffness: float, damping: float, slip_ve
     g = ca.DM(scene.gravity)
     mu = scene.mu
 
-    x = ca.SX.sym("x", BODY_STATE + FOOT_STATE * n_legs)
-    pos, vel, quat, omega = x[0:3], x[3:6], x[6:10], x[10:13]
+    xl = penalty_layout(n_legs)
+    x = ca.SX.sym("x", xl.size)
+    pos, vel, quat, omega = (xl.get(x, k) for k in ("position", "velocity", "attitude",
+                                                     "angular_velocity"))
     R = quat_to_rot(quat / ca.norm_2(quat))
 
     force_body = ca.DM.zeros(3)
     torque_body = ca.DM.zeros(3)
     foot_rates, penetrations = [], []
     for j, leg in enumerate(legs):
-        base = BODY_STATE + FOOT_STATE * j
-        r_f, u_f = x[base:base + 3], x[base + 3:base + 6]
+        r_f, u_f = xl.get(x, "foot", j), xl.get(x, "foot_velocity", j)
         rho = R.T @ (r_f - pos)                                  # foot, body axes
         rho_dot = R.T @ (u_f - vel) - ca.cross(omega, rho)       # relative to the hinge
         P = leg.functions()["strut_force"](rho, rho_dot, ca.DM(leg.param_values))  # (2.1)
@@ -202,8 +214,8 @@ def penalty_state(scene: Scene, x0=None) -> np.ndarray:
     moving with the body, v + R(ω × ρ).
     """
     n_legs = len(scene.legs)
-    sym_size = BODY_STATE + LEG_STATE * n_legs
-    own_size = BODY_STATE + FOOT_STATE * n_legs
+    sym_size = state_layout(n_legs).size
+    own_size = penalty_layout(n_legs).size
     x0 = state_vector(scene, x0)
     if x0.size == own_size:
         return x0.copy()
@@ -211,12 +223,13 @@ def penalty_state(scene: Scene, x0=None) -> np.ndarray:
         raise ValueError(f"`x0` must have {own_size} entries (penalty layout: body "
                          f"{BODY_STATE} + {FOOT_STATE} per foot) or {sym_size} (symcushion's "
                          f"state, initial_state(scene)), got {x0.size}.")
-    body = x0[:BODY_STATE].copy()
-    pos, vel, quat, omega = body[0:3], body[3:6], body[6:10], body[10:13]
-    R = quat_to_rot_np(quat)
+    xl = state_layout(n_legs)
+    body = x0[:xl.body_size].copy()
+    pos, vel, omega = (xl.get(x0, k) for k in ("position", "velocity", "angular_velocity"))
+    R = quat_to_rot_np(xl.get(x0, "attitude"))
     feet = []
     for j in range(n_legs):
-        r = x0[BODY_STATE + LEG_STATE * j: BODY_STATE + LEG_STATE * j + 3]
+        r = xl.get(x0, "foot", j)
         rho = R.T @ (r - pos)
         feet += [r, vel + R @ np.cross(omega, rho)]
     return np.concatenate([body, *feet])
@@ -307,9 +320,12 @@ def penalty_simulate(scene: Scene, *, rtol: float = 1e-8, atol: float | None = N
     acc, depth = model["outputs"].map(len(t))(X.T)
     acc = np.asarray(acc, dtype=float).T
     depth = np.asarray(depth, dtype=float).T.reshape(len(t), n_legs)
-    feet = X[:, BODY_STATE:].reshape(len(t), n_legs, FOOT_STATE)
-    quat = X[:, 6:10] / np.linalg.norm(X[:, 6:10], axis=1, keepdims=True)
-    stroke, deflection = leg_kinematics(scene, X[:, 0:3], quat, feet[:, :, 0:3])
+    xl = penalty_layout(n_legs)
+    Xc = X.T                                                    # columns are output times
+    quat = xl.get(Xc, "attitude").T
+    quat = quat / np.linalg.norm(quat, axis=1, keepdims=True)
+    feet = np.moveaxis(xl.legs(Xc, "foot"), -1, 0)              # (T, legs, 3)
+    stroke, deflection = leg_kinematics(scene, xl.get(Xc, "position").T, quat, feet)
     info = {
         "peer": "penalty", "integrator": "cvodes (BDF, Newton, dense direct)",
         "rtol": rtol, "atol": atol, "stiffness": k, "damping": c, "slip_velocity": v_s,
@@ -320,9 +336,9 @@ def penalty_simulate(scene: Scene, *, rtol: float = 1e-8, atol: float | None = N
         "newton_failures": int(stats.get("ncfn", -1)),
         "max_penetration": float(np.max(depth)), "cpu_seconds": cpu_seconds,
         "stats": dict(stats),
-        "foot_velocity": feet[:, :, 3:6],
+        "foot_velocity": np.moveaxis(xl.legs(Xc, "foot_velocity"), -1, 0),
     }
-    return PeerRun(t=t, position=X[:, 0:3], velocity=X[:, 3:6], acceleration=acc,
-                   attitude=quat, foot=feet[:, :, 0:3], stroke=stroke, deflection=deflection,
+    return PeerRun(t=t, position=xl.get(Xc, "position").T, velocity=xl.get(Xc, "velocity").T,
+                   acceleration=acc, attitude=quat, foot=feet, stroke=stroke, deflection=deflection,
                    wall_seconds=wall_seconds, build_seconds=build_seconds, info=info,
                    contact=depth > 0)

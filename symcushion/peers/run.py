@@ -15,8 +15,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..layout import quat_to_rot_np
 from ..scene import Scene
-from ..simulate import initial_state
+from ..touchdown import initial_state
 
 __all__ = ["PeerRun", "output_times", "leg_kinematics", "trajectory_deflection",
            "rebound_speed"]
@@ -146,18 +147,6 @@ def output_times(scene: Scene, output_dt) -> np.ndarray:
 # ---------------------------------------------------------------------------
 # geometry shared by the peers and by comparisons with symcushion
 # ---------------------------------------------------------------------------
-def quat_to_rot_np(q) -> np.ndarray:
-    """Rotation matrices (…, 3, 3) of quaternions (…, 4) (w, x, y, z), normalised here."""
-    q = np.asarray(q, dtype=float)
-    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    w, x, y, z = np.moveaxis(q, -1, 0)
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-    ], -2)
-
-
 def leg_kinematics(scene: Scene, position, attitude, foot):
     """Stroke δ_S and hinge deflection θ of every leg from poses and foot positions.
 

@@ -1,0 +1,137 @@
+"""Compiling ``envelope_case`` and running batches of cases through it.
+
+Owns the generated-and-compiled library of a scene's case Function (through
+:func:`symcushion.codegen.compile_cached`, the one build-and-cache of the
+package), loading it once per process, and the threaded ``map`` over a batch
+(and the Dask task wrapping it). It must not sample or classify.
+"""
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+from ..codegen import compile_cached
+from ..scene import Scene, scene_from_dict
+from ..touchdown import build_model
+from .cases import envelope_function, SUMMARY
+
+__all__ = ["DEFAULT_CACHE", "build_envelope", "run_batch"]
+
+#: Default folder of the compiled case Functions, one sub-folder per source
+#: fingerprint (git-ignored: ``build/`` is in .gitignore).
+DEFAULT_CACHE = Path("build") / "envelope"
+_SOURCE = "envelope_case.c"
+_LIBRARY = "libenvelope_case.so"
+_MANIFEST = "envelope.json"
+
+
+def build_envelope(scene: Scene, cache_dir=None, *, steps: int | None = None,
+                   progress: bool = False) -> Path:
+    """Generate and compile ``envelope_case`` for a scene; return the library's path.
+
+    The C source is generated (a second or two), fingerprinted with the flags
+    and compiler, and compiled into ``cache_dir/<scene name>-<fingerprint>/``
+    unless that folder already holds the library, so repeated studies, tests
+    and Dask workers reuse one build and different scenes (or μ) never share
+    a path (a process cannot load two libraries from one path). Flags are
+    those of ``symcushion.codegen`` (:data:`~symcushion.codegen.CFLAGS`).
+
+    Parameters
+    ----------
+    scene : Scene
+    cache_dir : str or Path, optional
+        Default :data:`DEFAULT_CACHE`.
+    steps : int, optional
+        Steps per case; default ``scene.steps``.
+
+    Returns
+    -------
+    Path
+        ``libenvelope_case.so``, for ``casadi.external("envelope_case", path)``.
+    """
+    started = time.perf_counter()
+    model = build_model(scene)
+    n_steps = scene.steps if steps is None else steps
+    note = (f"envelope_case for '{scene.name}' (method {scene.method}, "
+            f"{'μ an input' if scene.mu > 0 else 'frictionless'}, {n_steps} steps)")
+    built = compile_cached(envelope_function(model, steps), _SOURCE, _LIBRARY,
+                           Path(DEFAULT_CACHE if cache_dir is None else cache_dir),
+                           _safe(scene.name), note=note if progress else None)
+    if built.fresh:
+        (built.folder / _MANIFEST).write_text(json.dumps({
+            "scene": scene.name, "method": scene.method, "friction": scene.mu > 0,
+            "dt": scene.dt, "steps": n_steps, "nx": model.nx, "np": model.np,
+            "summary": list(SUMMARY), "instructions": model.step.n_instructions(),
+            "cflags": built.flags, "compiler": built.compiler, "fingerprint": built.digest,
+            "casadi": ca.__version__, "seconds": time.perf_counter() - started}, indent=1))
+    return built.library
+
+
+def _safe(name: str) -> str:
+    return "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in name) or "scene"
+
+
+_LOADED: dict = {}
+_MAPS: dict = {}
+
+
+def _case_function(library) -> ca.Function:
+    """``envelope_case`` from a library, loaded once per process."""
+    key = str(Path(library).resolve())
+    if key not in _LOADED:
+        if not Path(key).is_file():
+            raise FileNotFoundError(f"compiled envelope library {key!r} does not exist; "
+                                    "build it with `build_envelope(scene, cache_dir)`.")
+        _LOADED[key] = ca.external("envelope_case", key)
+    return _LOADED[key]
+
+
+def run_batch(library, x0, p, dt, threads: int = 1) -> tuple:
+    """Run a batch of cases through a compiled ``envelope_case``.
+
+    Parameters
+    ----------
+    library : str or Path
+        From :func:`build_envelope`.
+    x0 : array_like, shape (nx, B)
+    p : array_like, shape (np, B)
+        Each case's step parameters (:func:`case_params`: the legs' curves,
+        μ, the slope frame's gravity, mass, inertia).
+    dt : float
+    threads : int
+        Threads of ``map(B, "thread", threads)``; 1 runs serially.
+
+    Returns
+    -------
+    x_end : ndarray, shape (nx, B)
+    summary : ndarray, shape (len(SUMMARY), B)
+    """
+    f = _case_function(library)
+    x0 = np.asarray(x0, dtype=float)
+    p = np.asarray(p, dtype=float)
+    count = x0.shape[1]
+    if x0.shape[0] != f.size1_in(0) or p.shape != (f.size1_in(1), count):
+        raise ValueError(f"`x0` must be ({f.size1_in(0)}, B) and `p` ({f.size1_in(1)}, B), got "
+                         f"{x0.shape} and {p.shape}.")
+    threads = max(1, min(int(threads), count))
+    key = (id(f), count, threads)
+    if key not in _MAPS:
+        _MAPS[key] = f.map(count, "thread", threads) if threads > 1 else f.map(count, "serial")
+    x_end, summary = _MAPS[key](x0, p, float(dt))
+    return np.asarray(x_end, dtype=float), np.asarray(summary, dtype=float)
+
+
+def _dask_batch(library, scene_data, source, cache_dir, x0, p, dt):
+    """A Dask task: one batch; builds the library on the worker if it cannot see it."""
+    if not Path(library).is_file():
+        if scene_data is None:
+            raise FileNotFoundError(f"this worker cannot see {library!r} and has no scene to "
+                                    "build it from: put `cache_dir` on a shared filesystem or "
+                                    "load the study from a file (docs/envelope.md).")
+        scene = scene_from_dict(scene_data, source)
+        library = build_envelope(scene, cache_dir)
+    return run_batch(library, x0, p, dt, threads=1)

@@ -1,0 +1,270 @@
+"""Running an envelope study: locally on threads or as Dask tasks.
+
+Owns :func:`run_envelope` (sample, build, run in batches, classify, write),
+:func:`evaluate` (given conditions), the grouping of cases into batches by
+library (frictionless or with friction), progress lines and writing the
+results. It must not define the case Function or the classification.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..scene import Scene
+from .build import _dask_batch, build_envelope, DEFAULT_CACHE, run_batch
+from .cases import case_params, initial_states, SUMMARY
+from .classify import classify
+from .plots import plot_envelope
+from .sampling import sample_conditions
+from .statistics import EnvelopeResult
+from .study import _check_counts, _DEFAULTS, EnvelopeStudy, VARIABLES
+
+__all__ = ["PROGRESS_INTERVAL", "run_envelope", "evaluate", "write_result"]
+
+#: Seconds between progress lines.
+PROGRESS_INTERVAL = 0.5
+
+
+class _Progress:
+    """One stderr line: cases done, cases per second, estimated time left."""
+
+    def __init__(self, total: int, enabled: bool, label: str):
+        self.total, self.enabled, self.label = total, enabled, label
+        self.done = 0
+        self.started = time.perf_counter()
+        self.last = -math.inf
+
+    def update(self, count: int):
+        self.done += count
+        now = time.perf_counter()
+        if self.enabled and (now - self.last >= PROGRESS_INTERVAL or self.done >= self.total):
+            self.last = now
+            elapsed = max(now - self.started, 1e-9)
+            rate = self.done / elapsed
+            left = (self.total - self.done) / rate if rate > 0 else math.inf
+            print(f"\r  {self.label}: {self.done:,}/{self.total:,} cases, {rate:,.0f} cases/s, "
+                  f"{elapsed:.0f} s elapsed, about {left:.0f} s left   ", end="",
+                  file=sys.stderr, flush=True)
+            if self.done >= self.total:
+                print(file=sys.stderr, flush=True)
+
+
+def _tasks(conditions: dict, batch: int) -> list:
+    """(friction, indices) per batch: frictionless cases (μ = 0) run on the smaller
+    graph without friction paths, every other μ on one friction library."""
+    friction = conditions["mu"] > 0
+    tasks = []
+    for key in (False, True):
+        idx = np.flatnonzero(friction == key)
+        tasks += [(key, idx[i:i + batch]) for i in range(0, len(idx), batch)]
+    return tasks
+
+
+def _level_scene(scene: Scene, friction: bool, mu: np.ndarray) -> Scene:
+    """The scene whose graph runs the cases: frictionless, or with friction (μ an input)."""
+    if not friction:
+        return scene.with_(mu=0.0)
+    return scene if scene.mu > 0 else scene.with_(mu=float(np.max(mu)))
+
+
+def _libraries(study: EnvelopeStudy, mu: np.ndarray, cache_dir, progress: bool) -> dict:
+    """One compiled library per kind of case present (frictionless, friction)."""
+    return {friction: build_envelope(_level_scene(study.scene, friction, mu), cache_dir,
+                                     progress=progress)
+            for friction in sorted({bool(v > 0) for v in mu})}
+
+
+def _all_params(study: EnvelopeStudy, mu: np.ndarray, gravity: np.ndarray) -> dict:
+    """Each kind's parameter columns (np, n), indexed by case."""
+    return {friction: case_params(_level_scene(study.scene, friction, mu),
+                                  np.where(mu > 0, mu, 0.0) if friction else np.zeros_like(mu),
+                                  gravity)
+            for friction in sorted({bool(v > 0) for v in mu})}
+
+
+def _scene_data(study: EnvelopeStudy, friction: bool, mu: np.ndarray) -> dict | None:
+    if study.scene_data is None:
+        return None
+    raw = json.loads(json.dumps(study.scene_data))
+    raw.setdefault("scene", {})["mu"] = _level_scene(study.scene, friction, mu).mu
+    return raw
+
+
+def run_envelope(study: EnvelopeStudy, out_dir=None, *, threads: int | None = None,
+                 dask: bool = False, scheduler: str | None = None, workers: int = 2,
+                 cache_dir=None, progress: bool = True, plots: bool = True) -> EnvelopeResult:
+    """Sample, run, classify and (with ``out_dir``) write an envelope study.
+
+    Parameters
+    ----------
+    study : EnvelopeStudy
+    out_dir : str or Path, optional
+        Writes ``cases.csv``, ``summary.json`` and, with ``plots``, the figures
+        (:func:`plot_envelope`).
+    threads : int, optional
+        Threads of the local run (``map(batch, "thread", threads)``); default
+        every core (``os.cpu_count()``).
+    dask : bool
+        Run the batches as Dask tasks: on ``scheduler`` (an address such as
+        ``tcp://host:8786``) or, without one, on an in-process
+        ``LocalCluster`` of ``workers`` single-threaded worker processes.
+        Results equal the local run's bit for bit.
+    workers : int
+        Workers of the local Dask cluster.
+    cache_dir : str or Path, optional
+        Where compiled Functions are kept (:func:`build_envelope`); on a real
+        cluster put it on a filesystem the workers share, or let each worker
+        build its own copy.
+    progress : bool
+        A progress line on stderr.
+
+    Returns
+    -------
+    EnvelopeResult
+    """
+    if scheduler is not None:
+        dask = True
+    threads = (os.cpu_count() or 1) if threads is None else threads
+    if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
+        raise ValueError(f"`threads` must be a positive integer, got {threads!r}.")
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ValueError(f"`workers` must be a positive integer, got {workers!r}.")
+    _check_counts(study)
+    conditions = sample_conditions(study)
+    x0, gravity = initial_states(study, conditions)
+    scene = study.scene
+    started = time.perf_counter()
+    libraries = _libraries(study, conditions["mu"], cache_dir, progress)
+    p = _all_params(study, conditions["mu"], gravity)
+    build_seconds = time.perf_counter() - started
+    tasks = _tasks(conditions, study.batch)
+    x_end = np.zeros_like(x0)
+    summary = np.zeros((len(SUMMARY), study.n))
+    backend = "dask" if dask else "threads"
+    bar = _Progress(study.n, progress, f"{study.name} ({backend})")
+    started = time.perf_counter()
+    info = {}
+    if not dask:
+        for friction, idx in tasks:
+            xe, sm = run_batch(libraries[friction], x0[:, idx], p[friction][:, idx], scene.dt,
+                               threads)
+            x_end[:, idx], summary[:, idx] = xe, sm
+            bar.update(len(idx))
+        info = {"threads": threads}
+    else:
+        # run_seconds leaves out the cluster's start (reported as startup_seconds)
+        info = _run_dask(study, tasks, libraries, x0, conditions["mu"], p, x_end, summary, bar,
+                         scheduler, workers, cache_dir)
+    run_seconds = info.pop("compute_seconds", time.perf_counter() - started)
+    columns = classify(summary, x_end, gravity, x0, study.limits, len(scene.legs))
+    timings = {"backend": backend, **info, "batch": study.batch,
+               "build_seconds": round(build_seconds, 3), "run_seconds": round(run_seconds, 3),
+               "cases_per_second": round(study.n / run_seconds, 1),
+               "steps_per_case": scene.steps, "dt": scene.dt}
+    result = EnvelopeResult(study, conditions, columns, timings)
+    if out_dir is not None:
+        write_result(result, out_dir, plots=plots)
+    return result
+
+
+def evaluate(study: EnvelopeStudy, conditions: dict, *, threads: int = 1, cache_dir=None,
+             progress: bool = False) -> dict:
+    """Run and classify given touchdown conditions (not sampled), e.g. hand-built cases.
+
+    Parameters
+    ----------
+    study : EnvelopeStudy
+        Scene and limits (its sampling is not used).
+    conditions : dict
+        Values or arrays by name of :data:`VARIABLES`; missing names take the
+        study's fixed value or the default (0; μ the scene's).
+
+    Returns
+    -------
+    dict of str to ndarray
+        The columns of :func:`classify`.
+    """
+    unknown = sorted(set(conditions) - set(VARIABLES))
+    if unknown:
+        raise ValueError(f"`conditions`: unknown name(s) {unknown}; allowed: {list(VARIABLES)}.")
+    arrays = {k: np.atleast_1d(np.asarray(v, dtype=float)) for k, v in conditions.items()}
+    n = max(len(v) for v in arrays.values()) if arrays else 1
+    full = {}
+    for name in VARIABLES:
+        if name in arrays:
+            full[name] = np.broadcast_to(arrays[name], (n,)).copy()
+        else:
+            r = study.ranges.get(name)
+            value = r.value if r is not None and r.kind == "fixed" else \
+                (study.scene.mu if name == "mu" else _DEFAULTS[name])
+            full[name] = np.full(n, value)
+    x0, gravity = initial_states(study, full)
+    libraries = _libraries(study, full["mu"], cache_dir, progress)
+    p = _all_params(study, full["mu"], gravity)
+    x_end = np.zeros_like(x0)
+    summary = np.zeros((len(SUMMARY), n))
+    for friction, idx in _tasks(full, study.batch):
+        x_end[:, idx], summary[:, idx] = run_batch(libraries[friction], x0[:, idx],
+                                                   p[friction][:, idx], study.scene.dt, threads)
+    return classify(summary, x_end, gravity, x0, study.limits, len(study.scene.legs))
+
+
+def _run_dask(study, tasks, libraries, x0, mu, p, x_end, summary, bar, scheduler,
+              workers, cache_dir) -> dict:
+    try:
+        from distributed import Client, LocalCluster, as_completed
+    except ImportError:
+        raise ImportError("the Dask backend needs the optional extra: pip install "
+                          "'symcushion[dask]' (dask[distributed]).") from None
+    cluster = None
+    started = time.perf_counter()
+    if scheduler is None:
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                               dashboard_address=None, silence_logs=40)
+        client = Client(cluster)
+    else:
+        client = Client(scheduler)
+    cache = str(Path(DEFAULT_CACHE if cache_dir is None else cache_dir).resolve())
+    startup = time.perf_counter() - started
+    bar.started = time.perf_counter()
+    try:
+        futures = {}
+        for k, (friction, idx) in enumerate(tasks):
+            fut = client.submit(_dask_batch, str(Path(libraries[friction]).resolve()),
+                                _scene_data(study, friction, mu), study.source, cache,
+                                x0[:, idx], p[friction][:, idx], study.scene.dt,
+                                key=f"envelope-{study.name}-{study.seed}-{k}-{os.getpid()}-"
+                                    f"{time.monotonic_ns()}")
+            futures[fut] = idx
+        for fut in as_completed(futures):
+            idx = futures[fut]
+            xe, sm = fut.result()
+            x_end[:, idx], summary[:, idx] = xe, sm
+            bar.update(len(idx))
+        compute = time.perf_counter() - bar.started
+        n_workers = len(client.scheduler_info().get("workers", {}))
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    return {"scheduler": scheduler or "LocalCluster", "workers": n_workers,
+            "startup_seconds": round(startup, 3), "compute_seconds": compute}
+
+
+def write_result(result: EnvelopeResult, out_dir, plots: bool = True) -> dict:
+    """Write ``cases.csv``, ``summary.json`` and (with ``plots``) the figures into ``out_dir``."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    files = {"cases": out / "cases.csv", "summary": out / "summary.json"}
+    files["cases"].write_text(result.csv_text())
+    if plots:
+        files.update(plot_envelope(result, out))
+    result.files = files
+    files["summary"].write_text(json.dumps(result.summary(), indent=1))
+    return files

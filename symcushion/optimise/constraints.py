@@ -1,0 +1,247 @@
+"""Objective and constraints of the design NLP (a mixin of DesignProblem).
+
+Owns the epigraph form of the peak (one smooth row per step and scenario),
+the limit rows read from ``touchdown_measures`` of every rollout step, their
+scaling, and the shape rows of the tuned curves (monotone loading, onset
+slope, unloading below loading). It must not choose variables, call Ipopt
+or read study files.
+"""
+from __future__ import annotations
+
+import math
+
+import casadi as ca
+import numpy as np
+
+from ..characteristics import Curve, PiecewiseLinear
+from ..layout import state_layout
+from ..measures import measures_function
+from .spec import _Block, _up, VIOLATION_TOL
+
+__all__ = ["ONSET_SLOPE_FRACTION", "SHAPE_GRID"]
+
+#: Default lower bound on the slope of a tuned loading curve next to zero
+#: deflection, as a fraction of the initial curve's slope there. A curve that
+#: is flat at zero force lets the foot of a massless leg sink without any
+#: force, which the contact step reads as lift-off: the body falls through
+#: and every output jumps (docs/optimise.md, "contact onset"). A tenth of the
+#: starting stiffness keeps well away from that edge and is not active at the
+#: optima measured here.
+ONSET_SLOPE_FRACTION = 0.1
+#: Number of check points per side of zero for shape constraints of curves
+#: without knots (linear, crushable), on [−range, range].
+SHAPE_GRID = 8
+#: x·ẋ used to select a single branch of a curve when evaluating its shape,
+#: in units of the curve's ``rate_width``: tanh(50) = 1 to double precision,
+#: so a smooth curve then returns exactly its loading or unloading branch.
+_BRANCH_SELECT = 50.0
+
+
+class _Constraints:
+    """The NLP of a :class:`DesignProblem`: objective, limit and shape rows (a mixin).
+
+    Builds ``design_fg`` from the scenarios' rollouts and the per-step
+    ``touchdown_measures``; reads the problem's resolved variables, limits and
+    scales, and sets ``nlp``, ``blocks``, ``lbg``/``ubg`` and the output Function.
+    """
+
+    def _build(self):
+        lim = self.limits
+        nv = len(self.var_names)
+        w = ca.MX.sym("w", nv)                     # scaled design θ/scale
+        t = ca.MX.sym("t")                         # scaled epigraph variable
+        theta = w * ca.DM(self.scale)
+        p = ca.DM(self.p_fixed) + ca.DM(self._map) @ theta
+        blocks, rows = [], []
+        n_rows = 0
+
+        def add(expr, kind, scale, lower, upper, unit, scenario=None, leg=None, dt=None, label=""):
+            nonlocal n_rows
+            expr = ca.vec(expr)
+            if kind == "shape" and not ca.depends_on(expr, w):
+                # fixed by parameters that are not designed: check once, add no row
+                value = float(ca.Function("fixed", [w], [expr])(np.zeros(nv)))
+                if not lower - VIOLATION_TOL <= value / scale <= upper + VIOLATION_TOL:
+                    raise ValueError(f"shape constraint `{label}` fails ({value:.4g} {unit}) "
+                                     "and no design variable can change it; make the "
+                                     "parameters involved design variables or fix the curve.")
+                return
+            blocks.append(_Block(kind, scenario, leg, n_rows, n_rows + expr.numel(), lower, upper,
+                                 scale, unit, dt, label))
+            rows.append(expr / scale)
+            n_rows += expr.numel()
+
+        # the initial design's peak scales the epigraph variable
+        self._measure = []
+        peak_exprs, stroke_exprs = [], []
+        for s, model in zip(self.scenarios, self.models):
+            scene = s.scene
+            up = _up(scene.gravity)
+            # the design rows of p, then this scenario's own μ, gravity and body
+            p_full = ca.vertcat(p, ca.DM(model.default_p[model.params.n_leg_params:]))
+            X, Y = model.rollout(scene.steps)(ca.DM(s.x0), p_full, scene.dt)
+            per_step = measures_function(scene).map(scene.steps).call(
+                dict(x=X, y=Y, p=ca.repmat(p_full, 1, scene.steps)))
+            acc = ca.mtimes(ca.DM(up).T, per_step["specific_force"])
+            strokes = [per_step["stroke"][j, :] for j in range(model.n_legs)]
+            betas = [per_step["beta"][j, :] for j in range(model.n_legs)]
+            gammas = [per_step["gamma_deflection"][j, :] for j in range(model.n_legs)]
+            one_minus_cos_tilt = per_step["one_minus_cos_tilt"]
+            v_up = per_step["upward_speed"][-1]
+            axial = [j for j, leg in enumerate(scene.legs) if not leg.rigid]
+            self._measure.append(dict(acc=acc, strokes=strokes, betas=betas, gammas=gammas,
+                                      tilt=one_minus_cos_tilt, v_up=v_up, axial=axial))
+            peak_exprs.append(acc)
+            stroke_exprs += [strokes[j] for j in axial]
+
+        w0 = self.initial / self.scale
+        if self.objective_kind == "peak_deceleration":
+            ref = max(float(np.max(np.concatenate([
+                np.asarray(ca.Function("a", [w], [a])(w0)).ravel() for a in peak_exprs]))), 1e-12)
+            if ref <= 1e-9:
+                raise ValueError("the initial design gives no deceleration in any scenario: "
+                                 "no foot touches the obstacle within the simulated time; "
+                                 "lower the body (`clearance`) or lengthen `duration`.")
+        else:
+            if not stroke_exprs:
+                raise ValueError("objective 'peak_stroke' needs legs with an axial element `S`.")
+            ref = max(float(np.max(np.abs(np.concatenate([
+                np.asarray(ca.Function("d", [w], [d])(w0)).ravel() for d in stroke_exprs])))),
+                1e-12)
+        self.objective_scale = ref
+
+        for s, model, m in zip(self.scenarios, self.models, self._measure):
+            dt = s.scene.dt
+            if self.objective_kind == "peak_deceleration":
+                add(m["acc"] - t * ref, "epigraph", ref, -math.inf, 0.0, "m/s²", s.name, dt=dt,
+                    label="vertical deceleration ≤ t")
+            if lim.deceleration is not None:
+                add(m["acc"], "deceleration", lim.deceleration, -math.inf, 1.0, "m/s²", s.name,
+                    dt=dt, label="vertical deceleration")
+            for j in m["axial"]:
+                if self.objective_kind == "peak_stroke":
+                    add(ca.vertcat(m["strokes"][j] - t * ref, -m["strokes"][j] - t * ref),
+                        "epigraph", ref, -math.inf, 0.0, "m", s.name, j, dt, "|δ_S| ≤ t")
+                if lim.stroke is not None:
+                    add(m["strokes"][j], "stroke", lim.stroke, -1.0, 1.0, "m", s.name, j, dt,
+                        "axial stroke δ_S")
+            for j in range(model.n_legs):
+                if lim.beta is not None:
+                    add(m["betas"][j], "beta", lim.beta, -1.0, 1.0, "rad", s.name, j, dt,
+                        "hinge azimuth β")
+                if lim.gamma is not None:
+                    add(m["gammas"][j], "gamma", lim.gamma, -1.0, 1.0, "rad", s.name, j, dt,
+                        "hinge polar deflection γ − γ₀")
+            if lim.tilt is not None:
+                add(m["tilt"], "tilt", 1 - math.cos(lim.tilt), -math.inf, 1.0, "", s.name,
+                    dt=dt, label="body tilt (1 − cos)")
+            if lim.rebound_speed is not None or lim.sink_speed is not None:
+                top = lim.rebound_speed if lim.rebound_speed is not None else math.inf
+                bottom = -lim.sink_speed if lim.sink_speed is not None else -math.inf
+                v0 = state_layout(model.n_legs).get(s.x0, "velocity")
+                sc = max(abs(float(np.dot(_up(s.scene.gravity), v0))), 0.1)
+                add(m["v_up"], "final_speed", sc, bottom / sc, top / sc, "m/s", s.name,
+                    label="final vertical speed")
+
+        self._add_shape_constraints(theta, add)
+        g = ca.vertcat(*rows)
+        self.blocks = blocks
+        self._w, self._t = w, t
+        self.nlp = {"x": ca.vertcat(w, t), "f": t, "g": g}
+        self.lbg = np.concatenate([np.full(b.stop - b.start, b.lower) for b in blocks])
+        self.ubg = np.concatenate([np.full(b.stop - b.start, b.upper) for b in blocks])
+        self._fg = ca.Function("design_fg", [self.nlp["x"]], [self.nlp["f"], g], ["x"],
+                               ["f", "g"])
+        self._outputs = ca.Function(
+            "design_outputs", [w], [ca.vertcat(*[ca.vertcat(
+                ca.vec(m["acc"]), *[ca.vec(d) for d in m["strokes"]],
+                *[ca.vec(b) for b in m["betas"]], *[ca.vec(c) for c in m["gammas"]],
+                ca.vec(m["tilt"]), m["v_up"]) for m in self._measure])], ["w"], ["y"])
+
+    def _add_shape_constraints(self, theta, add):
+        """Monotone loading, onset slope and unloading-below rows, in terms of θ."""
+        p = ca.DM(self.p_fixed) + ca.DM(self._map) @ theta
+        lim = self.limits
+        ranges = dict(S=lim.stroke, M_beta=lim.beta, M_gamma=lim.gamma)
+        for j, name, curve, idx, shape in self._shapes:
+            th = ca.vertcat(*[p[k] for k in idx])
+            th0 = self.p_of(self.initial)[idx]
+            where = f"leg{j}.{name}"
+            points = _check_points(curve, ranges.get(name))
+            force_scale = max(float(np.max(np.abs([curve.force(x, _rate(curve, x, True), th0)
+                                                   for x in points]))), 1e-12)
+            slopes, mids, onset = _loading_slopes(curve, th, points)
+            if shape.monotone and slopes is not None:
+                slope0 = np.array([float(v) for v in _loading_slopes(curve, th0, points)[0]])
+                k_onset = shape.onset_slope
+                if k_onset is None:
+                    k_onset = ONSET_SLOPE_FRACTION * float(np.min(slope0[onset])) \
+                        if np.any(onset) else 0.0
+                    if np.any(onset) and k_onset <= 0:
+                        raise ValueError(
+                            f"{where}: the initial loading curve is not rising at zero "
+                            f"deflection (slope {np.min(slope0[onset]):g}); start from a "
+                            "rising curve or give `onset_slope` explicitly.")
+                minimum = np.where(onset, k_onset, 0.0)
+                slope_scale = max(float(np.max(np.abs(slope0))), 1e-12)
+                for i in range(len(slopes)):
+                    add(slopes[i] - minimum[i], "shape", slope_scale, 0.0, math.inf,
+                        "N/m" if name == "S" else "N·m/rad", label=(
+                            f"{where} loading slope at x = {mids[i]:.4g} ≥ {minimum[i]:.4g}"))
+            if shape.unloading_below and curve.unloading is not None:
+                for x in points:
+                    if x == 0:
+                        continue
+                    gap = np.sign(x) * (curve.force(x, _rate(curve, x, True), th)
+                                        - curve.force(x, _rate(curve, x, False), th))
+                    add(gap, "shape", force_scale, 0.0, math.inf,
+                        "N" if name == "S" else "N·m",
+                        label=f"{where} unloading below loading at x = {x:.4g}")
+
+
+def _rate(curve: Curve, x: float, loading: bool):
+    """A rate that selects one branch of ``curve`` exactly at x ≠ 0."""
+    if x == 0:
+        return 0.0
+    magnitude = _BRANCH_SELECT * curve.rate_width / abs(x)
+    return float(np.sign(x)) * magnitude * (1.0 if loading else -1.0)
+
+
+def _check_points(curve: Curve, extent) -> np.ndarray:
+    """Where shape constraints are checked: knots, or a grid on [−extent, extent]."""
+    pts = []
+    for c in (curve, curve.unloading):
+        if isinstance(c, PiecewiseLinear):
+            pts += list(c.knots)
+    if not pts:
+        extent = 1.0 if extent is None else extent
+        pts = list(np.linspace(-extent, extent, 2 * SHAPE_GRID + 1))
+    return np.unique(np.asarray(pts, dtype=float))
+
+
+def _loading_slopes(curve: Curve, th, points):
+    """Slopes of the loading branch, where, and which are next to x = 0.
+
+    For a piecewise-linear curve the slopes of its segments, from the knot
+    values (exact; a smoothed curve's slope blends neighbouring segments, so
+    it is monotone when they are); otherwise the slope at the check points.
+    """
+    if isinstance(curve, PiecewiseLinear):
+        xs = curve.knots
+        m = xs.size
+        slopes = [(th[i + 1] - th[i]) / (xs[i + 1] - xs[i]) for i in range(m - 1)]
+        mids = 0.5 * (xs[1:] + xs[:-1])
+        onset = (xs[:-1] <= 0) & (xs[1:] >= 0)
+        if not onset.any():                          # zero outside the knots: end segment
+            onset[0 if xs[0] > 0 else -1] = True
+        return slopes, mids, onset
+    pts = [x for x in points if x != 0]
+    if not pts:
+        return None, None, None
+    slopes = [curve.slope(x, _rate(curve, x, True), th) for x in pts]
+    pts = np.asarray(pts)
+    onset = np.zeros(pts.size, dtype=bool)
+    for side in (pts < 0, pts > 0):
+        if side.any():
+            onset[np.flatnonzero(side)[np.argmin(np.abs(pts[side]))]] = True
+    return slopes, pts, onset

@@ -1,0 +1,456 @@
+"""The touchdown step: the contact step of §1 inside a CasADi step Function.
+
+This module owns the step of a :class:`~symcushion.scene.Scene`
+(``touchdown_step``, its ``mapaccum`` rollout), its initial and equilibrium
+states and the explicit stability limit; the driver that runs it, with the
+paper's adaptive step criterion, and the trajectories it returns live in
+:mod:`symcushion.driver`.
+It receives the physics from elsewhere: the leg force P(r) and stiffness D_p
+from ``symcushion.strut``, the contact step from ``symcushion.contact`` and
+the obstacle geometry from ``symcushion.obstacles``; it re-derives none of it.
+
+Scheme (one step of length h, §3 of the paper with a velocity-Verlet body):
+
+1. half kick with the foot forces F_j of the previous step (state):
+   v ← v + h/2·(g + R ΣF_j/m), ω ← ω + h/2·I⁻¹(τ − ω × Iω);
+2. drift: x' = x + h v, q' = q ⊗ exp(h ω/2) (renormalised);
+3. each foot: the obstacle near it is replaced by its tangent plane (§3).
+   A foot in contact starts from its stored world position r_j with the exact
+   P₀ = P(ρ_j) and D_p(ρ_j) at ρ_j = Rᵀ(r_j − x) (body frame). A free foot
+   whose unloaded position crosses the surface during the step starts at the
+   crossing point (linear interpolation of the signed distance, projected on
+   the surface) with the unloaded pose as ρ_j. The plane's displacement
+   relative to the body is l_j = R'ᵀ(r_s − x') − ρ_j — the exact rigid-body
+   kinematics of §3's l_j = (V₀ + ω₀ × r_j)Δt with the sign of a body moving
+   past a fixed obstacle. The contact step gives δ_j, P_j; the foot moves to
+   ρ_j + δ_j, is projected back onto the curved surface, or returns to its
+   unloaded pose on lift-off;
+4. second half kick with the new forces.
+
+Order: velocity Verlet is second order and symplectic for smooth forces; the
+contact law is non-smooth, so the measured order is stated by the tests
+(``tests/test_simulate.py``) rather than assumed. The first-contact instant
+inside a step is located by linear interpolation of the distance; the force
+at the end of that step is exact for a plane, and the impulse over the step is
+integrated by the trapezoid rule, an O(h²) local error once per touchdown.
+
+Stability: the body update is explicit in velocity, so a stiff leg limits the
+step to ω_max Δt < 2, ω_max² the largest eigenvalue of M⁻¹K (M the body's
+6×6 mass matrix, K the stiffness of its pose against feet held fixed).
+:func:`stable_dt` estimates that limit from D_p by AD; ``simulate(...,
+adaptive=True, stability=True)`` caps every step at :data:`STABILITY_SAFETY`
+of it, or at a given fraction (opt-in, added for the stiff-leg hard case,
+docs/hard-cases.md; the default driver is unchanged). The paper's criterion
+1 − n_k·n_{k+1} < ε says nothing about this limit.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+
+from .contact import contact_step_expr
+from .layout import (BODY_OUT, BODY_STATE, LEG_OUT, LEG_STATE, MODES, ParamLayout, default_p,
+                     output_layout, param_layout, quat_exp, quat_mul, quat_to_rot,
+                     quat_to_rot_np, state_layout)
+from .obstacles import closest_obstacle
+from .scene import Scene
+
+__all__ = ["StepModel", "build_model", "initial_state", "equilibrium_state", "stable_dt",
+           "MODES", "STEP_CRITERION_EPS", "STABILITY_SAFETY", "MAX_HALVINGS",
+           "BODY_STATE", "LEG_STATE", "BODY_OUT", "LEG_OUT"]
+
+#: ε of the paper's step criterion 1 − n_k·n_{k+1} < ε (§3): a normal may
+#: turn by about √(2ε) = 0.45° per step before the adaptive driver halves Δt.
+STEP_CRITERION_EPS = 3e-5
+
+#: Deepest halving of Δt by the adaptive driver (Δt/2¹⁰ at most).
+MAX_HALVINGS = 10
+
+#: Fraction of the explicit stability limit 2/ω_max (:func:`stable_dt`) that
+#: ``simulate(adaptive=True, stability=True)`` allows per step: ω_max Δt ≤ 1,
+#: where velocity Verlet keeps the stiffest mode stable with a frequency error
+#: of 5 % (cos ω̃Δt = 1 − (ωΔt)²/2) instead of sitting on the edge of
+#: instability (ω Δt = 2). Stable is not accurate: an impact whose energy
+#: passes through that mode needs a smaller fraction (docs/hard-cases.md).
+STABILITY_SAFETY = 0.5
+
+
+# ---------------------------------------------------------------------------
+# the step Function
+# ---------------------------------------------------------------------------
+@dataclass
+class StepModel:
+    """The CasADi Functions of a scene and the layout of their vectors.
+
+    Attributes
+    ----------
+    step : casadi.Function
+        ``touchdown_step(x, p, dt) -> (x_next, y)``.
+    scene : Scene
+    nx, ny, np : int
+        Sizes of the state, the per-step output and the parameter vector.
+    param_names : tuple of str
+        Names of ``p``: ``leg{j}.{element}.{name}`` for the legs' curve
+        parameters, then the scene's ``mu`` (friction scenes only),
+        ``gravity.x/y/z``, ``mass`` and ``inertia.xx/yy/zz/xy/xz/yz``
+        (:class:`~symcushion.layout.ParamLayout`).
+    params : ParamLayout
+        The layout of ``p`` (read and write its entries by name).
+    """
+
+    step: ca.Function
+    scene: Scene
+    nx: int
+    ny: int
+    np: int
+    param_names: tuple
+    params: ParamLayout | None = None
+    _rollouts: dict = field(default_factory=dict)
+    _body_stiffness: ca.Function | None = None
+
+    def rollout(self, steps: int) -> ca.Function:
+        """``touchdown_rollout(x0, p, dt) -> (X, Y)``: ``steps`` steps by mapaccum.
+
+        X has the states after each step as columns (nx × steps), Y the outputs.
+        One call runs a whole simulation and is differentiable end to end.
+        """
+        if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
+            raise ValueError(f"`steps` must be a positive integer, got {steps!r}.")
+        steps = int(steps)
+        if steps not in self._rollouts:
+            # Building costs about 2 ms per step (CasADi's sparsity analysis of the
+            # repeated step); evaluating costs the same as a loop of calls without the
+            # Python overhead. Built once per length and cached.
+            acc = self.step.mapaccum("touchdown_rollout_acc", steps)
+            x0 = ca.MX.sym("x0", self.nx)
+            p = ca.MX.sym("p", self.np)
+            dt = ca.MX.sym("dt")
+            X, Y = acc(x0, p, dt)
+            self._rollouts[steps] = ca.Function("touchdown_rollout", [x0, p, dt], [X, Y],
+                                                ["x0", "p", "dt"], ["X", "Y"])
+        return self._rollouts[steps]
+
+    @property
+    def default_p(self) -> np.ndarray:
+        """The scene's values of ``p`` (shape (np,))."""
+        return default_p(self.scene)
+
+    def pack_params(self, base=None, **overrides) -> np.ndarray:
+        """``p`` with named scene entries replaced (``mu=``, ``gravity=``, ``mass=``,
+        ``inertia=``); ``base`` defaults to :attr:`default_p`. A frictionless scene
+        has no ``mu`` entry and refuses one."""
+        return self.params.pack(self.default_p if base is None else base, **overrides)
+
+    @property
+    def n_legs(self):
+        return len(self.scene.legs)
+
+    def graph_size(self) -> dict:
+        """Size of the step graph: SX instructions and nodes."""
+        return {"instructions": self.step.n_instructions(), "nodes": self.step.n_nodes()}
+
+
+def _leg_params(scene: Scene):
+    """Names of ``p`` and each leg's (start, stop) range of curve parameters."""
+    lay = param_layout(scene)
+    return lay.names, [(sl.start, sl.stop) for sl in lay._legs]
+
+
+def build_model(scene: Scene) -> StepModel:
+    """Build the ``touchdown_step`` Function of a scene.
+
+    Only what the scene needs is built: a leg's absent elements add nothing,
+    μ = 0 builds the frictionless contact step, and only the scene's
+    obstacles are in the graph.
+    """
+    legs = scene.legs
+    n_legs = len(legs)
+    params = param_layout(scene)
+    names, offsets = _leg_params(scene)
+    xl, yl = state_layout(n_legs), output_layout(n_legs)
+    nx, ny = xl.size, yl.size
+
+    X = ca.SX.sym("x", nx)
+    p = ca.SX.sym("p", params.size)
+    h = ca.SX.sym("dt")
+
+    # scene entries of p: one compiled step serves every gravity, body and μ
+    m = params.get(p, "mass")
+    inertia = params.inertia(p)
+    inertia_inv = ca.inv(inertia)
+    g = params.get(p, "gravity")
+    friction = scene.mu > 0          # μ = 0 literally: the frictionless graph, no μ entry
+    mu = params.get(p, "mu") if friction else 0.0
+
+    body = xl.unpack(X)
+    pos, vel, quat, omega = (body[k] for k in ("position", "velocity", "attitude",
+                                                "angular_velocity"))
+    feet = [{f: body[f][j] for f in ("foot", "contact", "force_body")} for j in range(n_legs)]
+    rest = [ca.DM(leg.rest_foot) for leg in legs]
+
+    R = quat_to_rot(quat)
+
+    def body_frame_foot(j, foot, R_, pos_):
+        in_contact = foot["contact"] > 0.5
+        return ca.if_else(in_contact, R_.T @ (foot["foot"] - pos_), rest[j])
+
+    # 1. half kick with the stored forces
+    force = ca.DM.zeros(3)
+    torque = ca.DM.zeros(3)
+    for j, foot in enumerate(feet):
+        rho = body_frame_foot(j, foot, R, pos)
+        force = force + foot["force_body"]
+        torque = torque + ca.cross(rho, foot["force_body"])
+    acc = g + R @ force / m
+    vel_h = vel + h / 2 * acc
+    omega_h = omega + h / 2 * (inertia_inv @ (torque - ca.cross(omega, inertia @ omega)))
+
+    # 2. drift
+    pos1 = pos + h * vel_h
+    quat1 = quat_mul(quat, quat_exp(h * omega_h))
+    quat1 = quat1 / ca.norm_2(quat1)
+    R1 = quat_to_rot(quat1)
+
+    # 3. feet
+    new_feet, outputs = [], []
+    force1 = ca.DM.zeros(3)
+    torque1 = ca.DM.zeros(3)
+    for j, (leg, foot) in enumerate(zip(legs, feet)):
+        fns = leg.functions()
+        p_leg = p[offsets[j][0]:offsets[j][1]]
+        in_contact = foot["contact"] > 0.5
+        # free foot: where does its unloaded position cross the surface?
+        free0 = pos + R @ rest[j]
+        free1 = pos1 + R1 @ rest[j]
+        d0, _, _ = closest_obstacle(scene.obstacles, free0)
+        d1, _, _ = closest_obstacle(scene.obstacles, free1)
+        crossing = d0 - d1
+        tau = ca.if_else(crossing > 0, d0 / ca.if_else(crossing > 0, crossing, 1.0), 0.0)
+        tau = ca.fmin(ca.fmax(tau, 0.0), 1.0)
+        _, _, touch = closest_obstacle(scene.obstacles, free0 + tau * (free1 - free0))
+        touches = d1 < 0
+        active = ca.logic_or(in_contact, touches)
+
+        r_s = ca.if_else(in_contact, foot["foot"], touch)        # world point of the plane
+        rho_s = body_frame_foot(j, foot, R, pos)               # foot, body frame
+        _, normal_w, _ = closest_obstacle(scene.obstacles, r_s)
+        l = R1.T @ (r_s - pos1) - rho_s                        # §3: l_j, exact kinematics
+        n_b = R1.T @ normal_w
+        u0 = rho_s - rest[j]
+        v_rel = l / h                                          # selects loading branches
+        P0 = fns["strut_force"](rho_s, v_rel, p_leg)
+        Dp = fns["strut_stiffness"](rho_s, v_rel, p_leg)
+        out = contact_step_expr(scene.method, P0, Dp, n_b, l, mu, u0,
+                                friction=friction)
+        if scene.tangent_plane == "end":
+            # second pass: the tangent plane at the predicted end point, shifted along
+            # its normal so that a sticking foot keeps its world point r_s
+            _, _, r_pred = closest_obstacle(scene.obstacles, pos1 + R1 @ (rho_s + out["delta"]))
+            _, normal_w, _ = closest_obstacle(scene.obstacles, r_pred)
+            n_b = R1.T @ normal_w
+            l = l + n_b * ca.dot(n_b, R1.T @ (r_pred - r_s))
+            out = contact_step_expr(scene.method, P0, Dp, n_b, l, mu, u0,
+                                    friction=friction)
+        stays = ca.logic_and(active, out["contact"] > 0.5)
+        rho1 = ca.if_else(stays, rho_s + out["delta"], rest[j])
+        foot_w = pos1 + R1 @ rho1
+        _, _, foot_proj = closest_obstacle(scene.obstacles, foot_w)
+        foot_w = ca.if_else(stays, foot_proj, foot_w)
+        rho1 = ca.if_else(stays, R1.T @ (foot_w - pos1), rho1)
+        P1 = ca.if_else(stays, out["P"], ca.DM.zeros(3))
+        new_feet.append(dict(foot=foot_w, contact=ca.if_else(stays, 1.0, 0.0), force_body=P1))
+        force1 = force1 + P1
+        torque1 = torque1 + ca.cross(rho1, P1)
+
+        slipping = ca.dot(out["k"], out["k"]) > 0
+        mode = ca.if_else(stays, ca.if_else(slipping, 2.0, 1.0),
+                          ca.if_else(active, 3.0, 0.0))
+        geo = fns["strut_geometry"].call(dict(r=rho1))
+        outputs.append(dict(contact=ca.if_else(stays, 1.0, 0.0), mode=mode, force=R1 @ P1,
+                            normal=ca.if_else(stays, normal_w, ca.DM.zeros(3)),
+                            axis=R1 @ geo["e_S"], stroke=geo["delta_S"], beta=geo["beta"],
+                            gamma_deflection=geo["gamma"] - leg.gamma0))
+
+    # 4. second half kick with the new forces
+    acc1 = g + R1 @ force1 / m
+    vel1 = vel_h + h / 2 * acc1
+    omega1 = omega_h + h / 2 * (inertia_inv @ (torque1 - ca.cross(omega_h, inertia @ omega_h)))
+
+    x_next = xl.pack(position=pos1, velocity=vel1, attitude=quat1, angular_velocity=omega1,
+                     **{f: [foot[f] for foot in new_feet] for f in ("foot", "contact",
+                                                                    "force_body")})
+    y = yl.pack(acceleration=acc1, **{f.name: [o[f.name] for o in outputs]
+                                       for f in yl.leg_fields})
+    step = ca.Function("touchdown_step", [X, p, h], [x_next, y], ["x", "p", "dt"],
+                       ["x_next", "y"])
+    return StepModel(step=step, scene=scene, nx=nx, ny=ny, np=params.size, param_names=names,
+                     params=params)
+
+
+# ---------------------------------------------------------------------------
+# states
+# ---------------------------------------------------------------------------
+def initial_state(scene: Scene) -> np.ndarray:
+    """State vector of the scene's initial conditions, all feet free."""
+    b = scene.body
+    R = _rot_np(b.attitude)
+    n = len(scene.legs)
+    return state_layout(n).pack(
+        position=b.position, velocity=b.velocity, attitude=b.attitude,
+        angular_velocity=b.angular_velocity,
+        foot=[b.position + R @ leg.rest_foot for leg in scene.legs], contact=[0.0] * n,
+        force_body=[np.zeros(3)] * n)
+
+
+def _rot_np(q):
+    """Rotation matrix of the quaternion ``q`` as given (not renormalised)."""
+    return quat_to_rot_np(q, normalise=False)
+
+
+def _drop_point(obstacles, free, direction, iterations=20):
+    """Where the line free + s·direction first meets the obstacle (Newton in s)."""
+    point = ca.DM(free)
+    for _ in range(iterations):
+        d, n, _ = closest_obstacle(obstacles, point)
+        slope = float(ca.evalf(ca.dot(n, ca.DM(direction))))
+        if abs(slope) < 1e-9:
+            raise ValueError("cannot drop a foot onto the obstacle: the drop direction is "
+                             "tangent to it; use placement='nearest'.")
+        point = point - float(ca.evalf(d)) / slope * ca.DM(direction)
+    return np.asarray(point, dtype=float).ravel()
+
+
+def equilibrium_state(scene: Scene, acceleration=(0.0, 0.0, 0.0), p=None,
+                      solve_attitude: bool = True, placement: str = "gravity") -> np.ndarray:
+    """A state at rest (or in steady translation) with every foot on the obstacle.
+
+    Each foot is placed where its unloaded position meets the obstacle, moving
+    along gravity (``placement='gravity'``, as a foot lands) or to the nearest
+    surface point (``'nearest'``), and held there; the body's position and (with
+    ``solve_attitude``) a small rotation of its attitude are solved by Newton's
+    method so that the leg forces balance the body: ΣP_j = −m(g − a) and
+    Σρ_j × P_j = 0. With ``acceleration`` the body's steady acceleration (no
+    rotation), this is the state of a steadily sliding body.
+
+    Returns
+    -------
+    ndarray, shape (nx,)
+        Velocities zero, contact flags 1, stored forces the exact P_j.
+    """
+    b = scene.body
+    R0 = _rot_np(b.attitude)
+    a = np.asarray(acceleration, dtype=float)
+    if placement not in ("gravity", "nearest"):
+        raise ValueError(f"`placement` must be 'gravity' or 'nearest', got {placement!r}.")
+    pts = []
+    down = scene.gravity / np.linalg.norm(scene.gravity)
+    for leg in scene.legs:
+        free = b.position + R0 @ leg.rest_foot
+        if placement == "gravity":
+            pts.append(_drop_point(scene.obstacles, free, down))
+        else:
+            _, _, proj = closest_obstacle(scene.obstacles, ca.DM(free))
+            pts.append(np.asarray(ca.evalf(proj)).ravel())
+    names, offsets = _leg_params(scene)
+    p = _default_p(scene) if p is None else np.asarray(p, dtype=float)
+    z = ca.SX.sym("z", 6 if solve_attitude else 3)
+    x = z[0:3]
+    q = ca.DM(b.attitude)
+    if solve_attitude:
+        q = quat_mul(q, quat_exp(z[3:6]))
+    R = quat_to_rot(q)
+    total = ca.DM.zeros(3)
+    torque = ca.DM.zeros(3)
+    for j, (leg, pt) in enumerate(zip(scene.legs, pts)):
+        rho = R.T @ (ca.DM(pt) - x)
+        P = leg.functions()["strut_force"](rho, ca.DM.zeros(3), p[offsets[j][0]:offsets[j][1]])
+        total = total + R @ P
+        torque = torque + ca.cross(rho, P)
+    residual = total + b.mass * (ca.DM(scene.gravity) - ca.DM(a))
+    if solve_attitude:
+        residual = ca.vertcat(residual, torque)
+    solver = ca.rootfinder("equilibrium", "newton", ca.Function("res", [z], [residual]),
+                           {"abstol": 1e-10, "max_iter": 200})
+    guess = np.concatenate([b.position, np.zeros(3)]) if solve_attitude else b.position
+    sol = np.asarray(solver(guess), dtype=float).ravel()
+    pos = sol[0:3]
+    quat = np.asarray(ca.evalf(ca.substitute(q, z, ca.DM(sol))), dtype=float).ravel()
+    R = _rot_np(quat)
+    forces = []
+    for j, (leg, pt) in enumerate(zip(scene.legs, pts)):
+        rho = R.T @ (pt - pos)
+        forces.append(np.asarray(leg.functions()["strut_force"](
+            rho, np.zeros(3), p[offsets[j][0]:offsets[j][1]])).ravel())
+    return state_layout(len(scene.legs)).pack(
+        position=pos, velocity=np.zeros(3), attitude=quat, angular_velocity=np.zeros(3),
+        foot=pts, contact=[1.0] * len(pts), force_body=forces)
+
+
+def _body_stiffness(model: StepModel) -> ca.Function:
+    """``body_stiffness(x, p) -> K``: 6×6 stiffness of the body pose (world frame).
+
+    K = −∂(ΣF_j, Στ_j)/∂(Δx, Δθ) at Δ = 0: the legs' force and moment on the
+    body when it is displaced by Δx and turned by the small world rotation Δθ
+    with every foot held where it is — a foot in contact at its stored point,
+    a free foot at its unloaded position (as if it touched down there now, so
+    that the estimate also covers the next touchdown). D_p enters by AD.
+    """
+    if model._body_stiffness is None:
+        scene = model.scene
+        _, offsets = _leg_params(scene)
+        X = ca.SX.sym("x", model.nx)
+        p = ca.SX.sym("p", model.np)
+        z = ca.SX.sym("z", 6)
+        xl = state_layout(model.n_legs)
+        pos, R = xl.get(X, "position"), quat_to_rot(xl.get(X, "attitude"))
+        R_z = quat_to_rot(quat_exp(z[3:6])) @ R
+        pos_z = pos + z[0:3]
+        wrench = ca.SX.zeros(6)
+        for j, leg in enumerate(scene.legs):
+            held = ca.if_else(xl.get(X, "contact", j) > 0.5, xl.get(X, "foot", j),
+                              pos + R @ ca.DM(leg.rest_foot))
+            rho = R_z.T @ (held - pos_z)
+            P = leg.functions()["strut_force"](rho, ca.DM.zeros(3),
+                                               p[offsets[j][0]:offsets[j][1]])
+            wrench = wrench + ca.vertcat(R_z @ P, R_z @ ca.cross(rho, P))
+        K = ca.substitute(-ca.jacobian(wrench, z), z, ca.DM.zeros(6))
+        model._body_stiffness = ca.Function("body_stiffness", [X, p], [K], ["x", "p"], ["K"])
+    return model._body_stiffness
+
+
+def stable_dt(model: StepModel, x, p=None) -> float:
+    """Explicit stability limit 2/ω_max of the body update at state ``x`` (s).
+
+    ω_max² is the largest |eigenvalue| of M⁻¹K, with M = diag(m I, R I_b Rᵀ)
+    the body's mass matrix and K its pose stiffness against feet held fixed
+    (:func:`_body_stiffness`). Velocity Verlet on ẍ = −ω²x is stable for
+    ω Δt < 2; a sliding foot is softer than a held one, so the estimate is
+    conservative in slip. Returns ``inf`` when no leg resists (K = 0).
+
+    Parameters
+    ----------
+    model : StepModel
+    x : array_like, shape (nx,)
+    p : array_like, optional
+        Leg parameters; default the scene's values.
+    """
+    x = np.asarray(x, dtype=float).ravel()
+    if x.shape != (model.nx,):
+        raise ValueError(f"`x` must have shape ({model.nx},), got {x.shape}.")
+    p = _default_p(model.scene) if p is None else np.asarray(p, dtype=float)
+    K = np.asarray(_body_stiffness(model)(x, p), dtype=float)
+    R = quat_to_rot_np(state_layout(model.n_legs).get(x, "attitude"))
+    body = model.scene.body
+    M_inv = np.zeros((6, 6))
+    M_inv[:3, :3] = np.eye(3) / body.mass
+    M_inv[3:, 3:] = R @ np.linalg.inv(body.inertia) @ R.T
+    omega2 = float(np.max(np.abs(np.linalg.eigvals(M_inv @ K))))
+    if not np.isfinite(omega2):
+        raise FloatingPointError(f"the body stiffness at this state is not finite: {K!r}.")
+    return np.inf if omega2 == 0 else 2.0 / np.sqrt(omega2)
+
+
+def _default_p(scene):
+    return default_p(scene)

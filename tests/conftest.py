@@ -1,0 +1,65 @@
+"""Shared fixtures: the canonical scenes and the random contact-case generator.
+
+The scenes are the study files of the repository (``studies/fig3.toml``,
+``studies/fig4.toml``, ``studies/lander_slope.toml``) loaded once per test
+session; tests that need a variant derive it with ``scene.with_(...)``, which
+returns a new scene and leaves the shared one unchanged. The contact-case
+generator is :func:`oracle_contact.random_cases` (pytest puts this folder on
+``sys.path``, so the oracle module imports without path manipulation).
+"""
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import oracle_contact
+from symcushion.characteristics import Linear
+from symcushion.obstacles import Plane
+from symcushion.scene import Body, Scene, load_scene, symmetric_legs
+
+ROOT = Path(__file__).resolve().parents[1]
+STUDIES = ROOT / "studies"
+
+
+@pytest.fixture(scope="session")
+def fig3_scene() -> Scene:
+    """The Fig. 3 scene: 50 kg ball on four rigid rods, frictionless dome."""
+    return load_scene(STUDIES / "fig3.toml")
+
+
+@pytest.fixture(scope="session")
+def fig4_scene() -> Scene:
+    """The Fig. 4 scene: Fig. 3 with μ = 0.05."""
+    return load_scene(STUDIES / "fig4.toml")
+
+
+@pytest.fixture(scope="session")
+def lander_scene() -> Scene:
+    """A four-legged lander on a 10° slope (the 3-D scene of the speed study)."""
+    return load_scene(STUDIES / "lander_slope.toml")
+
+
+def make_sled(theta, mu, method="implicit") -> Scene:
+    """Four vertical legs whose feet are level with the centre of mass (no pitching),
+    standing on a plane inclined by ``theta`` (rad) with friction ``mu``."""
+    legs = symmetric_legs(4, 0.4, 0.5, 0.5, (0, 0, -1), (-0.6, 0, -0.8), S=Linear(1e5),
+                          M_beta=Linear(3e3), M_gamma=Linear(3e3), azimuth0=np.pi / 4)
+    attitude = [np.cos(theta / 2), 0, np.sin(theta / 2), 0]   # body z along the slope normal
+    body = Body(mass=40.0, inertia=[1e6, 1e6, 1e6], position=[0, 0, 0.01], attitude=attitude)
+    return Scene(body, legs, [Plane.inclined(theta)], mu=mu, method=method, dt=1e-3,
+                 duration=2.0)
+
+
+@pytest.fixture(scope="session")
+def sled_scene():
+    """Factory ``sled_scene(theta, mu, method="implicit")`` of the sled on an incline."""
+    return make_sled
+
+
+@pytest.fixture(scope="session")
+def random_contact_cases():
+    """Factory ``random_contact_cases(seed, count, kind="mixed")`` of contact-step cases
+    (dicts of P0, Dp, n, l, mu, u0; kinds as in :func:`oracle_contact.random_cases`)."""
+    def make(seed, count, kind="mixed"):
+        return oracle_contact.random_cases(np.random.default_rng(seed), count, kind)
+    return make
