@@ -1,0 +1,515 @@
+"""The driver: runs a scene's step Function in blocks and records what happened.
+
+This module owns the time loop around ``touchdown_step`` (built by
+``symcushion.simulate.build_model``): fixed-step runs call a ``mapaccum``
+rollout of :data:`BLOCK_STEPS` steps repeatedly, adaptive runs apply the
+paper's step criterion step by step; both hand each block of rows to a
+recorder that detects the legs' events (touchdown, lift-off, stick/slip),
+calls an optional run monitor, streams the rows to a
+:class:`~symcushion.results.ResultWriter` and shows progress. It also owns
+:class:`Trajectory`, the in-memory result. It must not build physics (that is
+``symcushion.simulate``) nor format files (``symcushion.results``).
+"""
+from __future__ import annotations
+
+import sys
+import time
+import warnings
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+
+from .obstacles import closest_obstacle
+from .simulate import (BODY_OUT, BODY_STATE, LEG_OUT, LEG_STATE, MAX_HALVINGS, MODES,
+                       STABILITY_SAFETY, STEP_CRITERION_EPS, StepModel, _default_p, _rot_np,
+                       build_model, initial_state, stable_dt)
+
+__all__ = ["Trajectory", "trajectory_from", "simulate", "save", "RunWarning", "BLOCK_STEPS",
+           "KEEP_ROWS", "MAX_EVENTS"]
+
+#: Steps per rollout call: building a 500-step mapaccum takes about 0.1 s and
+#: a block's rows take 0.4 MB (4 legs), so progress updates several times a
+#: second while memory stays small whatever the duration.
+BLOCK_STEPS = 500
+
+#: Rows a streamed run (one writing to a ResultWriter) keeps in memory for its
+#: figures: every k-th row, k doubling as the run grows, at most 2× this many
+#: (about 16 MB with 4 legs); the files hold every row.
+KEEP_ROWS = 20_000
+
+#: Events (touchdowns, lift-offs, stick/slip switches) recorded in full; a
+#: chattering run beyond this counts the rest in ``info['events_dropped']``.
+MAX_EVENTS = 10_000
+
+#: "Up" when gravity is zero (angles from the vertical need a direction).
+UP_WITHOUT_GRAVITY = np.array([0.0, 0.0, 1.0])
+
+
+class RunWarning(UserWarning):
+    """A finding of a run monitor, raised through :mod:`warnings` by the API."""
+
+
+@dataclass
+class Trajectory:
+    """A simulated touchdown, one row per time point (SI units, world frame).
+
+    Attributes
+    ----------
+    t : (T,) s
+    position, velocity, acceleration : (T, 3) m, m/s, m/s²
+    attitude : (T, 4) unit quaternion (w, x, y, z)
+    angular_velocity : (T, 3) rad/s, body axes
+    foot : (T, N, 3) foot positions (m)
+    contact : (T, N) 1 in contact
+    mode : (T, N) 0 free, 1 stick, 2 slip, 3 lift-off (:data:`MODES`)
+    force : (T, N, 3) force on each foot from the obstacle (N)
+    normal : (T, N, 3) unit surface normal at the contact point (0 when free)
+    axis : (T, N, 3) unit strut direction e_S, hinge to foot (world)
+    alpha : (T, N) angle of the surface normal from the vertical (rad, NaN when free)
+    rod_angle : (T, N) angle of the strut from the downward vertical (rad)
+    force_angle : (T, N) angle of the contact force from the vertical (rad, NaN when free)
+    stroke, beta, gamma_deflection : (T, N) δ_S (m), hinge β and γ − γ₀ (rad)
+    criterion : (T,) max over feet of 1 − n_k·n_{k+1} (§3 step criterion)
+    info : dict
+        dt, steps, halvings, wall_seconds, criterion_max, method, ``events``
+        (dicts with ``time``, ``kind``, ``leg``), ``warnings`` (monitor findings),
+        ``final_state`` (the state vector after the last step, to continue a
+        run) and, for a streamed run, ``stride`` (every stride-th row kept).
+
+    The vertical is −gravity (+z when gravity is zero).
+    """
+
+    t: np.ndarray
+    position: np.ndarray
+    velocity: np.ndarray
+    acceleration: np.ndarray
+    attitude: np.ndarray
+    angular_velocity: np.ndarray
+    foot: np.ndarray
+    contact: np.ndarray
+    mode: np.ndarray
+    force: np.ndarray
+    normal: np.ndarray
+    axis: np.ndarray
+    alpha: np.ndarray
+    rod_angle: np.ndarray
+    force_angle: np.ndarray
+    stroke: np.ndarray
+    beta: np.ndarray
+    gamma_deflection: np.ndarray
+    criterion: np.ndarray
+    rows: np.ndarray = field(default=None, repr=False)
+    info: dict = field(default_factory=dict)
+
+    @property
+    def n_legs(self) -> int:
+        return self.foot.shape[1]
+
+    @property
+    def events(self) -> list:
+        """The run's events (dicts with ``time`` in s, ``kind``, ``leg`` or ``message``)."""
+        return list(self.info.get("events", []))
+
+    @classmethod
+    def load(cls, result_dir) -> "Trajectory":
+        """Read a result directory written by :func:`save` or ``symcushion simulate``."""
+        from .results import read_result, trajectory_columns
+
+        columns, data, meta = read_result(result_dir)
+        n_legs = sum(1 for c in columns if c.endswith("_mode_1"))
+        if n_legs < 1 or columns != trajectory_columns(n_legs):
+            raise ValueError(f"{result_dir} does not hold a symcushion trajectory of this "
+                             "version (unexpected columns); rerun the scene.")
+        gravity = np.asarray((meta.get("scene_summary") or {}).get("gravity", [0, 0, -9.81]),
+                             dtype=float)
+        traj = _assemble(data, n_legs, gravity)
+        traj.info = {k: v for k, v in meta.items() if k not in ("columns", "scene")}
+        traj.info["scene"] = meta.get("scene")
+        return traj
+
+    def to_dataframe(self):
+        """A pandas DataFrame of the rows, columns as in ``trajectory.csv``."""
+        try:
+            import pandas as pd
+        except ImportError:
+            raise ImportError("Trajectory.to_dataframe needs pandas, which is not installed; "
+                              "`pip install pandas`, or use the arrays of the Trajectory "
+                              "(traj.t, traj.position, ...) directly.") from None
+        from .results import trajectory_columns
+
+        frame = pd.DataFrame(self.rows, columns=trajectory_columns(self.n_legs))
+        for j in range(self.n_legs):
+            frame[f"leg{j}_mode_1"] = frame[f"leg{j}_mode_1"].round().astype(int).map(MODES)
+        return frame
+
+    def plot(self, path=None):
+        """Summary figure (``symcushion.plots.summary_figure``); saved if ``path`` is given."""
+        from .plots import summary_figure
+
+        return summary_figure(self, path)
+
+    def save_csv(self, path):
+        """Write the rows as ``trajectory.csv`` does (atomically) to ``path``."""
+        from .results import check_output_file, trajectory_columns, write_csv
+
+        path = check_output_file(path, "path")
+        return write_csv(path, trajectory_columns(self.n_legs), self.rows)
+
+    def save_npz(self, path):
+        """Write ``data`` (the rows), ``columns``, ``units``, ``metadata`` (JSON) to ``path``."""
+        from .results import column_unit, check_output_file, to_json, trajectory_columns
+
+        path = check_output_file(path, "path")
+        cols = trajectory_columns(self.n_legs)
+        np.savez(path, data=self.rows, columns=np.array(cols),
+                 units=np.array([column_unit(c) for c in cols]), metadata=np.array(to_json(
+                     {k: v for k, v in self.info.items() if k != "final_state"})))
+        return path
+
+
+def _up(gravity):
+    g = np.asarray(gravity, dtype=float)
+    norm = np.linalg.norm(g)
+    return -g / norm if norm > 0 else UP_WITHOUT_GRAVITY
+
+
+def _angle_from(vectors, axis):
+    norm = np.linalg.norm(vectors, axis=-1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cos = np.einsum("...i,i->...", vectors, axis) / norm
+    return np.arccos(np.clip(cos, -1.0, 1.0))
+
+
+def _assemble(rows, n_legs, gravity) -> Trajectory:
+    """A :class:`Trajectory` from rows [t, x, y] (shape (T, 1 + nx + ny))."""
+    rows = np.asarray(rows, dtype=float)
+    T, N = len(rows), n_legs
+    X = rows[:, 1:1 + BODY_STATE + LEG_STATE * N]
+    Y = rows[:, 1 + BODY_STATE + LEG_STATE * N:]
+    legs_x = X[:, BODY_STATE:].reshape(T, N, LEG_STATE)
+    legs_y = Y[:, BODY_OUT:].reshape(T, N, LEG_OUT)
+    up = _up(gravity)
+    contact, force, normal, e_S = (legs_y[:, :, 0], legs_y[:, :, 2:5], legs_y[:, :, 5:8],
+                                   legs_y[:, :, 8:11])
+    alpha = _angle_from(normal, up)
+    alpha[contact < 0.5] = np.nan
+    force_angle = _angle_from(force, up)
+    force_angle[contact < 0.5] = np.nan
+    crit = np.zeros(T)
+    if T > 2:
+        dots = np.einsum("tni,tni->tn", normal[1:-1], normal[2:])
+        both = (contact[1:-1] > 0.5) & (contact[2:] > 0.5)
+        crit[2:] = np.where(both, 1 - dots, 0.0).max(axis=1)
+    return Trajectory(
+        t=rows[:, 0], position=X[:, 0:3], velocity=X[:, 3:6], acceleration=Y[:, 0:3],
+        attitude=X[:, 6:10], angular_velocity=X[:, 10:13], foot=legs_x[:, :, 0:3],
+        contact=contact, mode=legs_y[:, :, 1], force=force, normal=normal, axis=e_S,
+        alpha=alpha, rod_angle=_angle_from(e_S, -up), force_angle=force_angle,
+        stroke=legs_y[:, :, 11], beta=legs_y[:, :, 12], gamma_deflection=legs_y[:, :, 13],
+        criterion=crit, rows=rows)
+
+
+def initial_output(model: StepModel, x0) -> np.ndarray:
+    """The output row y of the initial state (no step taken yet), shape (ny,).
+
+    Forces come from the stored state, geometry from the feet's positions
+    (a free foot at its unloaded pose), normals from the obstacle at feet in
+    contact; modes are stick (in contact) or free. All finite.
+    """
+    scene = model.scene
+    x0 = np.asarray(x0, dtype=float)
+    R = _rot_np(x0[6:10] / np.linalg.norm(x0[6:10]))
+    pos = x0[0:3]
+    total, legs = np.zeros(3), []
+    for j, leg in enumerate(scene.legs):
+        foot = x0[BODY_STATE + LEG_STATE * j: BODY_STATE + LEG_STATE * (j + 1)]
+        touching = foot[3] > 0.5
+        rho = R.T @ (foot[0:3] - pos) if touching else np.asarray(leg.rest_foot)
+        geo = leg.functions()["strut_geometry"](rho)
+        normal = np.zeros(3)
+        if touching:
+            _, n, _ = closest_obstacle(scene.obstacles, ca.DM(foot[0:3]))
+            normal = np.asarray(ca.evalf(n), dtype=float).ravel()
+        total += foot[4:7]
+        legs.append(np.concatenate([[float(touching), 1.0 if touching else 0.0], R @ foot[4:7],
+                                    normal, R @ np.asarray(geo[4]).ravel(),
+                                    [float(geo[1]), float(geo[2]),
+                                     float(geo[3]) - leg.gamma0]]))
+    acc0 = scene.gravity + R @ total / scene.body.mass
+    return np.concatenate([acc0, *legs])
+
+
+def trajectory_from(model: StepModel, x0, X, Y, t) -> Trajectory:
+    """Assemble a :class:`Trajectory` from a state history X (nx, K) and outputs Y (ny, K)."""
+    x0 = np.asarray(x0, float).ravel()
+    X = np.column_stack([x0, np.asarray(X, float)])
+    Y = np.column_stack([initial_output(model, x0), np.asarray(Y, float)])
+    rows = np.column_stack([np.asarray(t, float), X.T, Y.T])
+    return _assemble(rows, model.n_legs, model.scene.gravity)
+
+
+class _Recorder:
+    """Receives blocks of rows: events, monitor, streaming, thinning, progress."""
+
+    def __init__(self, model, x0, sink, monitor, progress, keep_rows):
+        self.model, self.sink, self.monitor = model, sink, monitor
+        self.keep_rows = keep_rows
+        self.events, self.warnings, self.dropped = [], [], 0
+        self.kept, self.kept_idx, self.stride, self.count = [], [], 1, 0
+        self.last_row = None
+        from tqdm.auto import tqdm
+
+        self.bar = tqdm(total=model.scene.duration, unit="s", file=sys.stderr, leave=False,
+                        disable=None if progress else True, desc=model.scene.name,
+                        bar_format="{desc}: {percentage:3.0f}%|{bar}| t = {n:.3f}/{total:g} s "
+                                   "[{elapsed}<{remaining}]")
+        self.progress = progress
+        y0 = initial_output(model, x0)
+        self._rows(np.zeros(1), x0[:, None], y0[:, None])
+
+    def _leg_flags(self, Y):
+        N = self.model.n_legs
+        legs = Y[BODY_OUT:].reshape(N, LEG_OUT, -1)
+        return legs[:, 0] > 0.5, np.rint(legs[:, 1]).astype(int)
+
+    def _events(self, t, Y):
+        contact, mode = self._leg_flags(Y)
+        if self.count:
+            contact = np.column_stack([self.prev[0], contact])
+            mode = np.column_stack([self.prev[1], mode])
+            t = np.concatenate([[np.nan], t])
+        self.prev = (contact[:, -1], mode[:, -1])
+        found = []
+        for j in range(contact.shape[0]):
+            c, m = contact[j], mode[j]
+            for k in np.nonzero(c[1:] != c[:-1])[0] + 1:
+                found.append((t[k], "touchdown" if c[k] else "lift-off", j))
+            stays = c[1:] & c[:-1]
+            for k in np.nonzero(stays & (m[1:] != m[:-1]) & (m[1:] > 0) & (m[:-1] > 0))[0] + 1:
+                found.append((t[k], MODES.get(int(m[k]), "unknown"), j))
+        for time_, kind, leg in sorted(found):
+            if len(self.events) < MAX_EVENTS:
+                self.events.append({"time": float(time_), "kind": kind, "leg": int(leg)})
+            else:
+                self.dropped += 1
+
+    def _monitor(self, t, X, Y):
+        for finding in self.monitor.check(t, X, Y) or []:
+            entry = {"time": float(t[-1]), "kind": "warning",
+                     "severity": str(getattr(finding, "severity", "warning")),
+                     "message": str(finding.message), "details": finding.to_dict()}
+            self.warnings.append(entry)
+            if len(self.events) < MAX_EVENTS:
+                self.events.append(entry)
+            text = f"t = {entry['time']:.4g} s: {entry['message']}"
+            if self.progress:
+                self.bar.write(f"warning: {text}", file=sys.stderr)
+            else:
+                warnings.warn(text, RunWarning, stacklevel=4)
+
+    def _rows(self, t, X, Y):
+        rows = np.column_stack([t, X.T, Y.T])
+        if not np.all(np.isfinite(X[0:3])):
+            raise FloatingPointError(
+                f"the simulation produced non-finite body positions near t = {t[0]:.4g} s; "
+                "reduce `dt` or check the scene.")
+        self._events(t, Y)
+        if self.monitor is not None and self.count:
+            self._monitor(t, X, Y)
+        if self.sink is not None:
+            self.sink.append(rows)
+        idx = self.count + np.arange(len(rows))
+        self.count += len(rows)
+        self.last_row = rows[-1]
+        if self.keep_rows is None:
+            self.kept.append(rows)
+            return
+        mask = idx % self.stride == 0
+        self.kept.append(rows[mask])
+        self.kept_idx.append(idx[mask])
+        if sum(len(k) for k in self.kept) > 2 * self.keep_rows:
+            self.stride *= 2
+            rows, idx = np.concatenate(self.kept), np.concatenate(self.kept_idx)
+            mask = idx % self.stride == 0
+            self.kept, self.kept_idx = [rows[mask]], [idx[mask]]
+
+    def block(self, t, X, Y):
+        """Record steps: t (B,) s, X (nx, B) states and Y (ny, B) outputs after each step."""
+        self._rows(np.asarray(t, float), np.asarray(X, float), np.asarray(Y, float))
+        self.bar.update(float(t[-1]) - self.bar.n)
+
+    def finish(self, gravity) -> Trajectory:
+        self.bar.close()
+        rows = np.concatenate(self.kept)
+        if self.keep_rows is not None and self.kept_idx[-1][-1] != self.count - 1:
+            rows = np.vstack([rows, self.last_row])
+        traj = _assemble(rows, self.model.n_legs, gravity)
+        traj.info = {"events": self.events, "warnings": self.warnings,
+                     "events_dropped": self.dropped, "rows": self.count}
+        if self.keep_rows is not None:
+            traj.info["stride"] = self.stride
+        return traj
+
+
+def simulate(scene, *, model: StepModel | None = None, x0=None, p=None,
+             adaptive: bool = False, eps: float = STEP_CRITERION_EPS,
+             stability: bool | float = False, progress: bool = False, monitor=None,
+             sink=None, keep_rows: int | None = None) -> Trajectory:
+    """Simulate a scene.
+
+    Parameters
+    ----------
+    scene : Scene
+    model : StepModel, optional
+        A model built before by :func:`~symcushion.simulate.build_model`.
+    x0 : array_like, shape (nx,), optional
+        Initial state; default :func:`~symcushion.simulate.initial_state`.
+    p : array_like, optional
+        Leg parameters (``model.param_names``); default the scene's values.
+    adaptive : bool
+        False: fixed Δt, rolled out in blocks of :data:`BLOCK_STEPS` steps by
+        ``touchdown_rollout`` (bit-identical to one rollout of the whole run).
+        True: a Python loop that applies the paper's criterion
+        1 − n_k·n_{k+1} < ``eps`` (§3) by halving Δt for a step (up to
+        :data:`MAX_HALVINGS` times) where a contact normal turns too fast.
+    stability : bool or float
+        Adaptive runs only: also cap each step at :data:`STABILITY_SAFETY`
+        (``True``) or the given fraction in (0, 1] × ``stable_dt`` of its start
+        state. ``info`` then has ``stability_capped``; every adaptive run
+        reports ``dt_min``, the smallest step taken (the final step aside).
+    progress : bool
+        Show a progress bar on the terminal (tqdm; silent when not a TTY) and
+        print monitor findings as ``warning:`` lines instead of raising
+        :class:`RunWarning` through :mod:`warnings`.
+    monitor : object, optional
+        Has ``check(t, X, Y) -> list`` of findings (objects with ``.to_dict()``,
+        ``.severity``, ``.message``), called once per block with t (B,) s and
+        the states X (nx, B) and outputs Y (ny, B) after each step. Findings
+        are recorded in ``info['warnings']`` and ``info['events']``.
+    sink : symcushion.results.ResultWriter, optional
+        Receives every row as it is computed. The returned trajectory then
+        keeps at most about 2 × ``keep_rows`` rows (every ``info['stride']``-th).
+    keep_rows : int, optional
+        Default :data:`KEEP_ROWS` with a sink, all rows without one.
+    """
+    from .scene import Scene
+
+    if not isinstance(scene, Scene):
+        raise TypeError(f"`scene` must be a Scene, got {type(scene).__name__} {scene!r}; load a "
+                        "file with symcushion.scene.load_scene(path).")
+    model = model or build_model(scene)
+    x0 = initial_state(scene) if x0 is None else np.asarray(x0, dtype=float)
+    if x0.shape != (model.nx,):
+        raise ValueError(f"`x0` must have shape ({model.nx},), got {x0.shape}.")
+    p = _default_p(scene) if p is None else np.asarray(p, dtype=float)
+    if p.shape != (model.np,):
+        raise ValueError(f"`p` must have {model.np} entries {model.param_names}, got {p.shape}.")
+    if stability is True or stability is False:
+        stability = STABILITY_SAFETY if stability else 0.0
+    if isinstance(stability, (bool, np.bool_)) or not isinstance(stability, (int, float)) \
+            or not 0 <= stability <= 1:
+        raise ValueError(f"`stability` must be True, False or a fraction in (0, 1], "
+                         f"got {stability!r}.")
+    if stability and not adaptive:
+        raise ValueError("`stability` needs `adaptive=True` (a fixed-step run uses "
+                         "scene.dt; choose it below stable_dt(model, x0) instead).")
+    if monitor is not None and not callable(getattr(monitor, "check", None)):
+        raise TypeError(f"`monitor` must have a check(t, X, Y) method, got {monitor!r}.")
+    if keep_rows is None and sink is not None:
+        keep_rows = KEEP_ROWS
+    if keep_rows is not None and (not isinstance(keep_rows, (int, np.integer)) or keep_rows < 1):
+        raise ValueError(f"`keep_rows` must be a positive integer, got {keep_rows!r}.")
+    started = time.perf_counter()
+    recorder = _Recorder(model, x0, sink, monitor, progress, keep_rows)
+    try:
+        if not adaptive:
+            info = _run_fixed(model, x0, p, recorder)
+        else:
+            info = _run_adaptive(model, x0, p, eps, recorder, stability)
+    finally:
+        recorder.bar.close()
+    traj = recorder.finish(scene.gravity)
+    traj.info.update(info)
+    traj.info["criterion_max"] = float(np.nanmax(traj.criterion)) if traj.criterion.size else 0.0
+    traj.info["wall_seconds"] = time.perf_counter() - started
+    traj.info["method"] = scene.method
+    return traj
+
+
+def _run_fixed(model, x0, p, recorder) -> dict:
+    scene = model.scene
+    steps, dt, done, x = scene.steps, scene.dt, 0, x0
+    while done < steps:
+        block = min(BLOCK_STEPS, steps - done)
+        X, Y = model.rollout(block)(x, p, dt)
+        X, Y = np.asarray(X, float), np.asarray(Y, float)
+        recorder.block(dt * np.arange(done + 1, done + block + 1), X, Y)
+        x, done = X[:, -1], done + block
+    return {"dt": dt, "steps": steps, "halvings": 0, "final_state": x}
+
+
+def _normals(model, y):
+    legs_y = np.asarray(y, float).ravel()[BODY_OUT:].reshape(model.n_legs, LEG_OUT)
+    return legs_y[:, 0] > 0.5, legs_y[:, 5:8]
+
+
+def _run_adaptive(model, x0, p, eps, recorder, stability=0.0) -> dict:
+    scene, step = model.scene, model.step
+    t_end, dt = scene.duration, scene.dt
+    t, x, steps = 0.0, x0, 0
+    ts, xs, ys = [], [], []
+    last_contact, last_normal = None, None
+    halvings = capped = 0
+    dt_min = np.inf
+    while t < t_end - 1e-12 * t_end:
+        h = min(dt, t_end - t)
+        if stability:
+            h_stable = stability * stable_dt(model, x, p)
+            if h_stable < h:
+                h, capped = h_stable, capped + 1
+        for depth in range(MAX_HALVINGS + 1):
+            x_new, y = step(x, p, h)
+            contact, normal = _normals(model, y)
+            if last_contact is None or depth == MAX_HALVINGS:
+                break
+            both = contact & last_contact
+            crit = np.max(1 - np.einsum("ni,ni->n", normal, last_normal)[both], initial=0.0)
+            if crit < eps:
+                break
+            h /= 2
+            halvings += 1
+        x = np.asarray(x_new, float).ravel()
+        if h < t_end - t - 1e-12 * t_end:       # not the final, shortened step
+            dt_min = min(dt_min, h)
+        t += h
+        steps += 1
+        ts.append(t)
+        xs.append(x)
+        ys.append(np.asarray(y, float).ravel())
+        if len(ts) == BLOCK_STEPS:
+            recorder.block(np.array(ts), np.column_stack(xs), np.column_stack(ys))
+            ts, xs, ys = [], [], []
+        last_contact, last_normal = contact, normal
+    if ts:
+        recorder.block(np.array(ts), np.column_stack(xs), np.column_stack(ys))
+    info = {"dt": dt, "steps": steps, "halvings": halvings, "eps": eps, "final_state": x,
+            "dt_min": dt_min}
+    if stability:
+        info["stability_capped"] = capped
+    return info
+
+
+def save(traj: Trajectory, out_dir, name: str, metadata: dict | None = None) -> dict:
+    """Write a trajectory held in memory to the result directory ``out_dir/name``.
+
+    Writes ``trajectory.csv``, ``trajectory.npz`` and ``run.json`` atomically
+    (``symcushion.results``); a long run streams instead (``simulate(...,
+    sink=ResultWriter(...))``). Returns the paths as a dict.
+    """
+    from .results import ResultWriter, result_dir, trajectory_columns
+
+    directory = result_dir(out_dir, name, "out_dir")
+    with ResultWriter(directory, trajectory_columns(traj.n_legs)) as writer:
+        writer.append(traj.rows)
+        return writer.finish(dict(traj.info, **(metadata or {})))
