@@ -44,6 +44,16 @@ def _event_lines(events):
     return lines, dropped
 
 
+#: Line styles cycled over the legs: legs that move alike (a symmetric lander)
+#: draw on top of each other, and dashes keep each of them visible.
+LEG_DASHES = ("-", "--", "-.", ":")
+
+
+def _leg_style(j, colors):
+    return dict(color=colors[j % len(colors)], ls=LEG_DASHES[j % len(LEG_DASHES)],
+                lw=1.6 if j % len(LEG_DASHES) == 0 else 1.2)
+
+
 def summary_figure(traj, path=None, title: str | None = None):
     """Draw the summary of a run: body height, vertical velocity and acceleration;
     per leg contact-force magnitude, stroke, hinge angles β and γ − γ₀, and mode.
@@ -87,13 +97,12 @@ def summary_figure(traj, path=None, title: str | None = None):
             ax.plot(t, y, color="k", lw=1.2)
         else:
             for j in range(N):
-                ax.plot(t, y[:, j], color=colors[j % len(colors)], lw=1.1)
+                ax.plot(t, y[:, j], **_leg_style(j, colors))
         ax.set_ylabel(label, fontsize=9)
     for ax, (label, y) in zip(axes[:, 1], panels_leg):
         for j in range(N):
-            drawn = ax.plot(t, y[:, j], color=colors[j % len(colors)], lw=1.1,
-                            drawstyle="steps-post" if label == "mode" else "default",
-                            alpha=0.9, label=f"leg {j}")
+            drawn = ax.plot(t, y[:, j], drawstyle="steps-post" if label == "mode" else "default",
+                            label=f"leg {j}", **_leg_style(j, colors))
             if label == "mode":
                 leg_handles.append(drawn[0])
         ax.set_ylabel(label, fontsize=9)

@@ -52,6 +52,16 @@ _COPY_CHUNK = 1 << 20
 _XYZ = ("x", "y", "z")
 
 
+def _file_mode() -> int:
+    umask = os.umask(0)
+    os.umask(umask)
+    return 0o666 & ~umask
+
+
+#: Permissions of written files: those of open(), 0666 less the umask.
+_FILE_MODE = _file_mode()
+
+
 def _layout_columns(n_legs: int) -> tuple[list, list]:
     """Names of the state x and per-step output y entries, in vector order.
 
@@ -188,6 +198,7 @@ def _temporary(path: Path, mode: str):
     # the real suffix last, so that writers that infer a format from it still can
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.",
                                suffix=f".tmp{path.suffix}")
+    os.chmod(tmp, _FILE_MODE)       # mkstemp makes 0600; results are ordinary files
     return os.fdopen(fd, mode, **({"newline": ""} if "b" not in mode else {})), Path(tmp)
 
 
