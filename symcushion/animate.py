@@ -13,7 +13,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from .obstacles import closest_obstacle
+from .obstacles import Sphere, closest_obstacle
 
 __all__ = ["animate", "draw_frame", "frame_indices", "DEFAULT_FRAMES", "DEFAULT_FPS"]
 
@@ -72,10 +72,15 @@ def _surface(scene, centre, half):
     p = ca.SX.sym("p", 3)
     dist = ca.Function("surface_distance", [p], [closest_obstacle(scene.obstacles, p)[0]],
                        ["p"], ["d"])
-    # a polar grid about the scene's axis: a dome's rim is then a clean circle
-    radius, angle = np.meshgrid(np.linspace(0, half, SURFACE_GRID),
-                                np.linspace(0, 2 * np.pi, 2 * SURFACE_GRID))
-    X, Y = centre[0] + radius * np.cos(angle), centre[1] + radius * np.sin(angle)
+    if all(isinstance(ob, Sphere) for ob in scene.obstacles):
+        # a polar grid about the scene's axis: a dome's rim is then a clean circle
+        radius, angle = np.meshgrid(np.linspace(0, half, SURFACE_GRID),
+                                    np.linspace(0, 2 * np.pi, 2 * SURFACE_GRID))
+        X, Y = centre[0] + radius * np.cos(angle), centre[1] + radius * np.sin(angle)
+    else:
+        # a square grid filling the view: ground under every foot
+        X, Y = np.meshgrid(centre[0] + np.linspace(-half, half, SURFACE_GRID),
+                           centre[1] + np.linspace(-half, half, SURFACE_GRID))
     n = X.size
     mapped = dist.map(n)
     points = np.vstack([X.ravel(), Y.ravel(), np.zeros(n)])

@@ -121,8 +121,11 @@ class Trajectory:
         if n_legs < 1 or columns != trajectory_columns(n_legs):
             raise ValueError(f"{result_dir} does not hold a symcushion trajectory of this "
                              "version (unexpected columns); rerun the scene.")
-        gravity = np.asarray((meta.get("scene_summary") or {}).get("gravity", [0, 0, -9.81]),
-                             dtype=float)
+        gravity = meta.get("gravity", (meta.get("scene_summary") or {}).get("gravity"))
+        if gravity is None:
+            raise ValueError(f"{result_dir}: run.json does not give the gravity of the run; "
+                             "rerun the scene.")
+        gravity = np.asarray(gravity, dtype=float)
         traj = _assemble(data, n_legs, gravity)
         traj.info = {k: v for k, v in meta.items() if k not in ("columns", "scene")}
         traj.info["scene"] = meta.get("scene")
@@ -434,6 +437,7 @@ def simulate(scene, *, model: StepModel | None = None, x0=None, p=None,
     traj.info["criterion_max"] = float(np.nanmax(traj.criterion)) if traj.criterion.size else 0.0
     traj.info["wall_seconds"] = time.perf_counter() - started
     traj.info["method"] = scene.method
+    traj.info["gravity"] = scene.gravity      # the vertical of the angles, for Trajectory.load
     return traj
 
 

@@ -136,6 +136,8 @@ def test_zero_gravity_writes_finite_columns(tmp_path):
     text = files["csv"].read_text()
     assert "nan" not in text.lower() and "inf" not in text.lower()
     assert np.isfinite(traj.rod_angle).all()
+    back = Trajectory.load(tmp_path / "drop")     # the vertical (+z) comes back with it
+    np.testing.assert_array_equal(back.rod_angle, traj.rod_angle)
 
 
 def test_monitor_findings_become_events_and_warnings(tmp_path):
