@@ -263,6 +263,12 @@ def _parser() -> argparse.ArgumentParser:
                    help="frames of animation.gif (default: %(default)s)")
     p.set_defaults(func=_cmd_plot)
 
+    _add_study_commands(sub)
+    return parser
+
+
+def _add_study_commands(sub):
+    """The codegen, optimise and envelope sub-commands."""
     p = sub.add_parser("codegen", help="generate C code of the contact steps and a scene's "
                                        "touchdown; --build compiles it",
                        description="Generate C code (docs/codegen.md).")
@@ -309,7 +315,6 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--build-dir", type=Path, default=None, metavar="DIR",
                    help="cache of compiled Functions (default: build/envelope)")
     p.set_defaults(func=_cmd_envelope)
-    return parser
 
 
 def _terminate(signum, frame):

@@ -54,6 +54,22 @@ def _leg_style(j, colors):
                 lw=1.6 if j % len(LEG_DASHES) == 0 else 1.2)
 
 
+def _mark_events(axes, events) -> list:
+    """Vertical lines at the events on every panel; legend handles of the kinds drawn."""
+    from matplotlib.lines import Line2D
+
+    lines, dropped = _event_lines(events)
+    handles = []
+    for kind, times in lines.items():
+        style = EVENT_STYLES[kind]
+        for ax in axes:
+            for s in times:
+                ax.axvline(s, **style)
+        more = f" (+{dropped[kind]} more)" if kind in dropped else ""
+        handles.append(Line2D([], [], label=kind + more, **style))
+    return handles
+
+
 def summary_figure(traj, path=None, title: str | None = None):
     """Draw the summary of a run: body height, vertical velocity and acceleration;
     per leg contact-force magnitude, stroke, hinge angles β and γ − γ₀, and mode.
@@ -110,15 +126,7 @@ def summary_figure(traj, path=None, title: str | None = None):
     mode_ax = axes[-1, 1]
     mode_ax.set_yticks([0, 1, 2, 3], ["free", "stick", "slip", "lift-off"], fontsize=8)
     mode_ax.set_ylim(-0.4, 3.4)
-    lines, dropped = _event_lines(traj.info.get("events", []))
-    event_handles = []
-    for kind, times in lines.items():
-        style = EVENT_STYLES[kind]
-        for ax in axes.ravel():
-            for s in times:
-                ax.axvline(s, **style)
-        more = f" (+{dropped[kind]} more)" if kind in dropped else ""
-        event_handles.append(plt.Line2D([], [], label=kind + more, **style))
+    event_handles = _mark_events(axes.ravel(), traj.info.get("events", []))
     for ax in axes.ravel():
         ax.grid(alpha=0.3)
         ax.tick_params(labelsize=8)

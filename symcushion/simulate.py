@@ -468,9 +468,9 @@ def _default_p(scene):
     return np.concatenate(vals) if vals else np.zeros(0)
 
 
-# The driver (time loop, Trajectory, save) lives in symcushion.driver; these
-# names stay importable from here, loaded on first use so that importing either
-# module first works.
+# The driver (time loop, save) lives in symcushion.driver and the Trajectory in
+# symcushion.trajectory; these names stay importable from here, loaded on
+# first use so that importing either module first works.
 _DRIVER_NAMES = ("Trajectory", "trajectory_from", "simulate", "save")
 
 
