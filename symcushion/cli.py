@@ -12,13 +12,13 @@ from pathlib import Path
 
 from . import __version__
 from .animate import DEFAULT_FRAMES
+from .results import check_out_dir, check_output_file
 
 __all__ = ["main"]
 
 
 def _cmd_reproduce(args):
     from .reproduce import reproduce
-    from .results import check_out_dir
 
     if args.update_figures and args.out is not None:
         raise ValueError("give either `--out DIR` or `--update-figures` (which writes into "
@@ -149,12 +149,13 @@ def _cmd_optimise(args):
         if args.max_iter < 1:
             raise ValueError(f"`--max-iter` must be a positive integer, got {args.max_iter}.")
         study.ipopt["max_iter"] = args.max_iter
+    out = args.out if args.out is not None else Path("out") / f"{study.name}.json"
+    check_output_file(out, "--out")                    # before building and solving
     pb = study.problem
     print(f"{study.name}: {len(pb.scenarios)} scenario(s), {pb.n_variables} design variables, "
           f"{pb.lbg.size} constraints, objective {pb.objective_kind} (built in "
           f"{pb.build_seconds:.1f} s)", flush=True)
     result = study.solve(progress=True)
-    out = args.out if args.out is not None else Path("out") / f"{study.name}.json"
     result.save_json(out)
     print(result.message)
     if result.efficiency is not None:
@@ -171,7 +172,7 @@ def _cmd_envelope(args):
                if v is not None}
     if changes:
         study = study.with_(**changes)
-    out = args.out if args.out is not None else Path("out") / study.name
+    out = check_out_dir(args.out if args.out is not None else Path("out") / study.name, "--out")
     backend = ("Dask at " + args.scheduler if args.scheduler else
                f"a local Dask cluster of {args.workers} workers" if args.dask else
                f"{args.threads or 'all'} thread(s)")

@@ -171,6 +171,10 @@ def check_output_file(path, argument: str = "--out") -> Path:
     path = Path(path)
     if path.is_dir():
         raise ValueError(f"`{argument}` {path} is a directory; give a file path.")
+    for parent in path.parents:
+        if parent.exists() and not parent.is_dir():
+            raise ValueError(f"`{argument}` {path} lies under {parent}, which is a file, not a "
+                             "directory; give a path in a directory.")
     check_out_dir(path.parent if str(path.parent) else ".", argument)
     return path
 

@@ -163,3 +163,14 @@ def test_killed_first_run_leaves_no_file(tmp_path):
     code, directory = _run_and_kill(tmp_path / "out", 100.0)
     assert code == 128 + signal.SIGTERM
     assert list(directory.iterdir()) == []
+
+
+@pytest.mark.parametrize("command", (["optimise", str(ROOT / "studies" / "absorber_1d.toml")],
+                                     ["envelope", str(ROOT / "studies" / "envelope_lander.toml")]))
+def test_study_outputs_are_checked_before_the_work(tmp_path, capsys, command):
+    afile = tmp_path / "afile"
+    afile.write_text("x")
+    out = afile / "result.json" if command[0] == "optimise" else afile
+    assert cli.main(command + ["--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "`--out`" in err and "file" in err
