@@ -237,6 +237,7 @@ def simulate(scene, *, model: StepModel | None = None, x0=None, p=None,
     traj.info["wall_seconds"] = time.perf_counter() - started
     traj.info["method"] = scene.method
     traj.info["gravity"] = scene.gravity      # the vertical of the angles, for Trajectory.load
+    traj.info["name"] = scene.name
     return traj
 
 

@@ -137,7 +137,7 @@ def summary_figure(traj, path=None, title: str | None = None):
                bbox_to_anchor=(0.5, 0.955))
     info = traj.info
     if title is None:
-        name = (info.get("scene_summary") or {}).get("name", "run")
+        name = info.get("name") or (info.get("scene_summary") or {}).get("name", "run")
         title = f"{name}: {info.get('method', '')} method, Δt = {info.get('dt', float('nan')):g} s"
         if info.get("stride", 1) > 1:
             title += f" (every {info['stride']}th row drawn)"

@@ -44,7 +44,8 @@ class Trajectory:
     stroke, beta, gamma_deflection : (T, N) δ_S (m), hinge β and γ − γ₀ (rad)
     criterion : (T,) max over feet of 1 − n_k·n_{k+1} (§3 step criterion)
     info : dict
-        dt, steps, halvings, wall_seconds, criterion_max, method, ``events``
+        dt, steps, halvings, wall_seconds, criterion_max, method, name,
+        gravity (m/s², world), ``events``
         (dicts with ``time``, ``kind``, ``leg``), ``warnings`` (monitor findings),
         ``final_state`` (the state vector after the last step, to continue a
         run) and, for a streamed run, ``stride`` (every stride-th row kept).
