@@ -11,7 +11,8 @@ P = P(δ, sign δ′) as in the paper: the loading branch is active while the
 deflection grows in magnitude (x·ẋ ≥ 0), the unloading branch while it shrinks
 (x·ẋ < 0).
 
-Curves evaluate on floats and on CasADi SX/MX alike. Their parameters form a
+Curves evaluate on floats, on NumPy arrays (elementwise) and on CasADi SX/MX
+alike. Their parameters form a
 flat vector with names (``Curve.param_names``), so an optimiser can make them
 symbolic: pass ``theta`` (a CasADi vector) to :meth:`Curve.force`.
 """
@@ -50,6 +51,11 @@ RATE_WIDTH = 1e-6
 
 def _is_symbolic(*values) -> bool:
     return any(isinstance(v, (ca.SX, ca.MX)) for v in values)
+
+
+def _is_array(*values) -> bool:
+    """True if a value is an array or a sequence (evaluated elementwise)."""
+    return any(isinstance(v, (np.ndarray, list, tuple)) and np.ndim(v) > 0 for v in values)
 
 
 def _numeric_out(value, symbolic: bool):
@@ -205,6 +211,8 @@ class Curve:
         float or casadi expression
             Force (N) or moment (N·m).
         """
+        if _is_array(x, rate) and not _is_symbolic(x, rate, theta, branch_x):
+            return self._on_array("force", x, rate, theta)
         symbolic = _is_symbolic(x, rate, theta)
         th_load, th_unload = self._split(theta)
         value = self._loading(x, th_load)
@@ -215,6 +223,8 @@ class Curve:
 
     def slope(self, x, rate=0.0, theta=None):
         """Derivative df/dx of the active branch (N/m or N·m/rad), written by hand."""
+        if _is_array(x, rate) and not _is_symbolic(x, rate, theta):
+            return self._on_array("slope", x, rate, theta)
         symbolic = _is_symbolic(x, rate, theta)
         th_load, th_unload = self._split(theta)
         value = self._loading_slope(x, th_load)
@@ -224,6 +234,67 @@ class Curve:
         return _numeric_out(value, symbolic)
 
     __call__ = force
+
+    def _on_array(self, which, x, rate, theta):
+        """Evaluate ``force`` or ``slope`` elementwise on NumPy arrays (broadcast x, rate)."""
+        x = np.asarray(x, dtype=float)
+        rate = np.asarray(rate, dtype=float)
+        shape = np.broadcast_shapes(x.shape, rate.shape)
+        theta = self.param_values if theta is None else np.asarray(theta, dtype=float).ravel()
+        self._split(theta)                       # checks the number of parameters
+        cache = self.__dict__.setdefault("_array_functions", {})
+        if which not in cache:
+            xs, rs = ca.SX.sym("x"), ca.SX.sym("rate")
+            th = ca.SX.sym("theta", self.n_params)
+            cache[which] = ca.Function(f"curve_{which}", [xs, rs, th],
+                                       [getattr(self, which)(xs, rs, th)],
+                                       ["x", "rate", "theta"], [which])
+        n = int(np.prod(shape))
+        if n == 0:
+            return np.zeros(shape)
+        # one row of n columns: CasADi evaluates the scalar Function n times
+        row = lambda a: np.broadcast_to(a, shape).reshape(1, n)  # noqa: E731
+        value = cache[which](row(x), row(rate), theta)
+        return np.asarray(value, dtype=float).reshape(shape)
+
+    def plot(self, x=None, ax=None, label=None):
+        """Plot f(x): the loading branch and, if any, the unloading branch.
+
+        Parameters
+        ----------
+        x : array_like, optional
+            Deflections (m or rad); default 201 points over ±0.1.
+        ax : matplotlib Axes, optional
+            Default: a new figure.
+        label : str, optional
+            Title (default: the curve's type).
+
+        Returns
+        -------
+        matplotlib Axes
+        """
+        import matplotlib.pyplot as plt
+
+        x = np.linspace(-0.1, 0.1, 201) if x is None else np.asarray(x, dtype=float).ravel()
+        new = ax is None
+        if new:
+            _, ax = plt.subplots(figsize=(5, 3.5))
+        # loading: the deflection grows in magnitude (x·ẋ > 0)
+        ax.plot(x, self.force(x, np.sign(x) + (x == 0)), lw=1.5, label="loading")
+        if self.unloading is not None:
+            ax.plot(x, self.force(x, -np.sign(x) - (x == 0)), "--", lw=1.5, label="unloading")
+        ax.axhline(0, color="k", lw=0.5)
+        ax.axvline(0, color="k", lw=0.5)
+        ax.set_xlabel("deflection x [m or rad]")
+        ax.set_ylabel("f(x) [N or N·m]")
+        ax.set_title(type(self).__name__ if label is None else label, fontsize=10)
+        ax.legend(fontsize=8)
+        ax.grid(alpha=0.3)
+        ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 4))
+        ax.locator_params(axis="x", nbins=6)
+        if new:
+            ax.figure.tight_layout()
+        return ax
 
     def __repr__(self):
         args = ", ".join(f"{n}={v:g}" for n, v in zip(self.param_names, self.param_values))

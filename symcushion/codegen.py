@@ -43,6 +43,7 @@ import numpy as np
 
 from .contact import METHODS, contact_step
 from .layout import default_p, param_layout
+from .results import check_out_dir
 from .scene import Scene, load_scene
 from .touchdown import StepModel, build_model, initial_state
 
@@ -526,8 +527,8 @@ def generate(out_dir, scene=None, build: bool = False, steps: int | None = None,
         steps = _check_steps(steps)
     if scene is None and steps is not None:
         raise ValueError("`steps` is the length of touchdown_rollout and needs a `scene`.")
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    # checked (a directory, writable) before the long code generation and build
+    out = check_out_dir(out_dir, "out_dir")
     if build and find_compiler() is None:
         raise FileNotFoundError("no C compiler: set $CC or install gcc to use `build=True`.")
 

@@ -1,192 +1,169 @@
-"""The driver: runs a scene's touchdown step and returns its trajectory.
+"""The driver: runs a scene's step Function in blocks and records what happened.
 
-This module owns :func:`simulate` (a fixed-step rollout in one call, or the
-paper's adaptive step criterion 1 − n_k·n_{k+1} < ε of §3 by halving Δt),
-the :class:`Trajectory` it returns, and writing trajectories to CSV and NPZ.
-It must not build or change the step: that is :mod:`symcushion.touchdown`.
+This module owns the time loop around ``touchdown_step`` (built by
+``symcushion.touchdown.build_model``): fixed-step runs call a ``mapaccum``
+rollout of :data:`BLOCK_STEPS` steps repeatedly, adaptive runs apply the
+paper's step criterion step by step; both hand each block of rows to a
+recorder that detects the legs' events (touchdown, lift-off, stick/slip),
+calls an optional run monitor, streams the rows to a
+:class:`~symcushion.results.ResultWriter` and shows progress; the result is a
+:class:`~symcushion.trajectory.Trajectory`. It must not build physics (that
+is ``symcushion.touchdown``) nor format files (``symcushion.results``).
 """
 from __future__ import annotations
 
+import sys
 import time
-from dataclasses import dataclass, field
+import warnings
 from pathlib import Path
 
 import numpy as np
 
-from .layout import BODY_OUT, BODY_STATE, LEG_OUT, LEG_STATE, output_layout
-from .scene import Scene
-from .validation import real
+from .layout import MODES, output_layout, state_layout
 from .touchdown import (MAX_HALVINGS, STABILITY_SAFETY, STEP_CRITERION_EPS, StepModel,
-                        _default_p, _rot_np, build_model, initial_state, stable_dt)
+                        build_model, initial_state, stable_dt)
+from .validation import real
+from .trajectory import Trajectory, _assemble, initial_output, trajectory_from
 
-__all__ = ["Trajectory", "trajectory_from", "simulate", "save"]
+__all__ = ["Trajectory", "trajectory_from", "initial_output", "simulate", "save", "RunWarning",
+           "BLOCK_STEPS", "KEEP_ROWS", "MAX_EVENTS"]
+
+#: Steps per rollout call: building a 500-step mapaccum takes about 0.1 s and
+#: a block's rows take 0.4 MB (4 legs), so progress updates several times a
+#: second while memory stays small whatever the duration.
+BLOCK_STEPS = 500
+
+#: Rows a streamed run (one writing to a ResultWriter) keeps in memory for its
+#: figures: every k-th row, k doubling as the run grows, at most 2× this many
+#: (about 16 MB with 4 legs); the files hold every row.
+KEEP_ROWS = 20_000
+
+#: Events (touchdowns, lift-offs, stick/slip switches) recorded in full; a
+#: chattering run beyond this counts the rest in ``info['events_dropped']``.
+MAX_EVENTS = 10_000
+
+class RunWarning(UserWarning):
+    """A finding of a run monitor, raised through :mod:`warnings` by the API."""
 
 
-# ---------------------------------------------------------------------------
-# trajectories
-# ---------------------------------------------------------------------------
-@dataclass
-class Trajectory:
-    """A simulated touchdown, one row per time point (SI units, world frame).
+class _Recorder:
+    """Receives blocks of rows: events, monitor, streaming, thinning, progress."""
 
-    Attributes
-    ----------
-    t : (T,) s
-    position, velocity, acceleration : (T, 3) m, m/s, m/s²
-    attitude : (T, 4) unit quaternion (w, x, y, z)
-    angular_velocity : (T, 3) rad/s, body axes
-    foot : (T, N, 3) foot positions (m)
-    contact : (T, N) 1 in contact
-    mode : (T, N) 0 free, 1 stick, 2 slip, 3 lift-off (:data:`MODES`)
-    force : (T, N, 3) force on each foot from the obstacle (N)
-    normal : (T, N, 3) unit surface normal at the contact point (0 when free)
-    alpha : (T, N) angle of the surface normal from the vertical (rad, NaN when free)
-    rod_angle : (T, N) angle of the strut from the downward vertical (rad)
-    force_angle : (T, N) angle of the contact force from the vertical (rad, NaN when free)
-    stroke, beta, gamma_deflection : (T, N) δ_S (m), hinge β and γ − γ₀ (rad)
-    criterion : (T,) max over feet of 1 − n_k·n_{k+1} (§3 step criterion)
-    info : dict
-        dt, steps, halvings, wall_seconds, criterion_max, method, and
-        ``final_state`` (the state vector after the last step, to continue a run).
-    """
+    def __init__(self, model, x0, sink, monitor, progress, keep_rows):
+        self.model, self.sink, self.monitor = model, sink, monitor
+        self.keep_rows = keep_rows
+        self.events, self.warnings, self.dropped = [], [], 0
+        self.kept, self.kept_idx, self.stride, self.count = [], [], 1, 0
+        self.last_row = None
+        from tqdm.auto import tqdm
 
-    t: np.ndarray
-    position: np.ndarray
-    velocity: np.ndarray
-    acceleration: np.ndarray
-    attitude: np.ndarray
-    angular_velocity: np.ndarray
-    foot: np.ndarray
-    contact: np.ndarray
-    mode: np.ndarray
-    force: np.ndarray
-    normal: np.ndarray
-    alpha: np.ndarray
-    rod_angle: np.ndarray
-    force_angle: np.ndarray
-    stroke: np.ndarray
-    beta: np.ndarray
-    gamma_deflection: np.ndarray
-    criterion: np.ndarray
-    info: dict = field(default_factory=dict)
+        self.bar = tqdm(total=model.scene.duration, unit="s", file=sys.stderr, leave=False,
+                        disable=None if progress else True, desc=model.scene.name,
+                        bar_format="{desc}: {percentage:3.0f}%|{bar}| t = {n:.3f}/{total:g} s "
+                                   "[{elapsed}<{remaining}]")
+        self.progress = progress
+        y0 = initial_output(model, x0)
+        self._rows(np.zeros(1), x0[:, None], y0[:, None])
 
-    _ARRAYS = ("t", "position", "velocity", "acceleration", "attitude", "angular_velocity",
-               "foot", "contact", "mode", "force", "normal", "alpha", "rod_angle",
-               "force_angle", "stroke", "beta", "gamma_deflection", "criterion")
+    def _leg_flags(self, Y):
+        yl = output_layout(self.model.n_legs)
+        return yl.legs(Y, "in_contact") > 0.5, np.rint(yl.legs(Y, "mode")).astype(int)
 
-    def save_npz(self, path):
-        """Save every array (and ``info`` as a string) to an NPZ file."""
-        np.savez(path, info=str(self.info), **{k: getattr(self, k) for k in self._ARRAYS})
-
-    def save_csv(self, path):
-        """Save one row per time point; per-leg columns are suffixed ``_j``."""
-        cols, data = [], []
-
-        def add(name, arr):
-            arr = np.asarray(arr, dtype=float)
-            if arr.ndim == 1:
-                cols.append(name)
-                data.append(arr)
+    def _events(self, t, Y):
+        contact, mode = self._leg_flags(Y)
+        if self.count:
+            contact = np.column_stack([self.prev[0], contact])
+            mode = np.column_stack([self.prev[1], mode])
+            t = np.concatenate([[np.nan], t])
+        self.prev = (contact[:, -1], mode[:, -1])
+        found = []
+        for j in range(contact.shape[0]):
+            c, m = contact[j], mode[j]
+            for k in np.nonzero(c[1:] != c[:-1])[0] + 1:
+                found.append((t[k], "touchdown" if c[k] else "lift-off", j))
+            stays = c[1:] & c[:-1]
+            for k in np.nonzero(stays & (m[1:] != m[:-1]) & (m[1:] > 0) & (m[:-1] > 0))[0] + 1:
+                found.append((t[k], MODES.get(int(m[k]), "unknown"), j))
+        for time_, kind, leg in sorted(found):
+            if len(self.events) < MAX_EVENTS:
+                self.events.append({"time": float(time_), "kind": kind, "leg": int(leg)})
             else:
-                for idx in np.ndindex(arr.shape[1:]):
-                    cols.append(name + "_" + "_".join(str(i) for i in idx))
-                    data.append(arr[(slice(None),) + idx])
+                self.dropped += 1
 
-        for k in self._ARRAYS:
-            add(k, getattr(self, k))
-        table = np.column_stack(data)
-        with open(path, "w") as fh:
-            fh.write(",".join(cols) + "\n")
-            for row in table:
-                fh.write(",".join("" if np.isnan(v) else repr(float(v)) for v in row) + "\n")
+    def _monitor(self, t, X, Y):
+        for finding in self.monitor.check(t, X, Y) or []:
+            entry = {"time": float(t[-1]), "kind": "warning",
+                     "severity": str(getattr(finding, "severity", "warning")),
+                     "message": str(finding.message), "details": finding.to_dict()}
+            self.warnings.append(entry)
+            if len(self.events) < MAX_EVENTS:
+                self.events.append(entry)
+            text = f"t = {entry['time']:.4g} s: {entry['message']}"
+            if self.progress:
+                self.bar.write(f"warning: {text}", file=sys.stderr)
+            else:
+                warnings.warn(text, RunWarning, stacklevel=4)
+
+    def _rows(self, t, X, Y):
+        rows = np.column_stack([t, X.T, Y.T])
+        if not np.all(np.isfinite(state_layout(self.model.n_legs).get(X, "position"))):
+            raise FloatingPointError(
+                f"the simulation produced non-finite body positions near t = {t[0]:.4g} s; "
+                "reduce `dt` or check the scene.")
+        self._events(t, Y)
+        if self.monitor is not None and self.count:
+            self._monitor(t, X, Y)
+        if self.sink is not None:
+            self.sink.append(rows)
+        idx = self.count + np.arange(len(rows))
+        self.count += len(rows)
+        self.last_row = rows[-1]
+        if self.keep_rows is None:
+            self.kept.append(rows)
+            return
+        mask = idx % self.stride == 0
+        self.kept.append(rows[mask])
+        self.kept_idx.append(idx[mask])
+        if sum(len(k) for k in self.kept) > 2 * self.keep_rows:
+            self.stride *= 2
+            rows, idx = np.concatenate(self.kept), np.concatenate(self.kept_idx)
+            mask = idx % self.stride == 0
+            self.kept, self.kept_idx = [rows[mask]], [idx[mask]]
+
+    def block(self, t, X, Y):
+        """Record steps: t (B,) s, X (nx, B) states and Y (ny, B) outputs after each step."""
+        self._rows(np.asarray(t, float), np.asarray(X, float), np.asarray(Y, float))
+        self.bar.update(float(t[-1]) - self.bar.n)
+
+    def finish(self, gravity) -> Trajectory:
+        self.bar.close()
+        rows = np.concatenate(self.kept)
+        if self.keep_rows is not None and self.kept_idx[-1][-1] != self.count - 1:
+            rows = np.vstack([rows, self.last_row])
+        traj = _assemble(rows, self.model.n_legs, gravity)
+        traj.info = {"events": self.events, "warnings": self.warnings,
+                     "events_dropped": self.dropped, "rows": self.count}
+        if self.keep_rows is not None:
+            traj.info["stride"] = self.stride
+        return traj
 
 
-def _angle_from(vectors, axis):
-    norm = np.linalg.norm(vectors, axis=-1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        cos = np.einsum("...i,i->...", vectors, axis) / norm
-    return np.arccos(np.clip(cos, -1.0, 1.0))
-
-
-def trajectory_from(model: StepModel, x0, X, Y, t) -> Trajectory:
-    """Assemble a :class:`Trajectory` from a state history and outputs."""
-    scene = model.scene
-    N = model.n_legs
-    X = np.column_stack([np.asarray(x0, float).reshape(-1, 1), np.asarray(X, float)]).T
-    Y = np.asarray(Y, float).T
-    legs_x = X[:, BODY_STATE:].reshape(len(X), N, LEG_STATE)
-    legs_y = Y[:, BODY_OUT:].reshape(len(Y), N, LEG_OUT)
-    # the initial row has no step output: forces come from the state, geometry is NaN
-    pad = lambda arr: np.concatenate([arr[:1] * np.nan, arr], axis=0)  # noqa: E731
-    up = -scene.gravity / np.linalg.norm(scene.gravity)
-    R0 = _rot_np(X[0, 6:10])
-    acc0 = scene.gravity + R0 @ legs_x[0, :, 4:7].sum(axis=0) / scene.body.mass
-    contact = np.concatenate([legs_x[:1, :, 3], legs_y[:, :, 0]])
-    force = np.concatenate([np.einsum("ij,nj->ni", R0, legs_x[0, :, 4:7])[None], legs_y[:, :, 2:5]])
-    normal = pad(legs_y[:, :, 5:8])
-    e_S = pad(legs_y[:, :, 8:11])
-    alpha = _angle_from(normal, up)
-    alpha[contact < 0.5] = np.nan
-    force_angle = _angle_from(force, up)
-    force_angle[contact < 0.5] = np.nan
-    crit = np.zeros(len(X))
-    dots = np.einsum("tni,tni->tn", normal[1:-1], normal[2:])
-    both = (contact[1:-1] > 0.5) & (contact[2:] > 0.5)
-    crit[2:] = np.where(both, 1 - dots, 0.0).max(axis=1) if N else 0.0
-    return Trajectory(
-        t=np.asarray(t, float), position=X[:, 0:3], velocity=X[:, 3:6],
-        acceleration=np.concatenate([acc0[None], Y[:, 0:3]]), attitude=X[:, 6:10],
-        angular_velocity=X[:, 10:13], foot=legs_x[:, :, 0:3], contact=contact,
-        mode=np.concatenate([legs_x[:1, :, 3], legs_y[:, :, 1]]), force=force, normal=normal,
-        alpha=alpha, rod_angle=_angle_from(e_S, -up), force_angle=force_angle,
-        stroke=pad(legs_y[:, :, 11]), beta=pad(legs_y[:, :, 12]),
-        gamma_deflection=pad(legs_y[:, :, 13]), criterion=crit)
-
-
-def simulate(scene: Scene | str | Path, *, model: StepModel | None = None, x0=None, p=None,
-             adaptive: bool = False, eps: float = STEP_CRITERION_EPS,
-             stability: bool | float = False, progress: bool = False) -> Trajectory:
-    """Simulate a scene.
-
-    The scene is checked first (``symcushion.checks.preflight``): a scene that
-    makes no physical sense raises ``SceneError``, a doubtful one warns.
-
-    Parameters
-    ----------
-    scene : Scene, or str or Path of a scene TOML file
-    model : StepModel, optional
-        A model built before by :func:`build_model` (reused across calls).
-    x0 : array_like, shape (nx,), optional
-        Initial state; default :func:`initial_state`.
-    p : array_like, optional
-        Leg parameters (``model.param_names``); default the scene's values.
-    adaptive : bool
-        False: fixed Δt, the whole run in one call of ``touchdown_rollout``;
-        the largest value of the step criterion is in ``info['criterion_max']``.
-        True: a Python loop that applies the paper's criterion
-        1 − n_k·n_{k+1} < ``eps`` (§3) by halving Δt for a step (up to
-        :data:`MAX_HALVINGS` times) where a contact normal turns too fast.
-    stability : bool or float
-        Adaptive runs only: also cap each step at :data:`STABILITY_SAFETY`
-        (``True``) or the given fraction in (0, 1] × :func:`stable_dt` of its
-        start state (stiff legs, e.g. rigid rods with a large ``axial_ratio``;
-        a fraction well below 1 also resolves the stiff mode, whose energy
-        error is O((ω_max Δt)²) of the energy it carries). ``info`` then has
-        ``stability_capped`` (steps shortened by the cap); every adaptive run
-        reports ``dt_min``, the smallest step taken (the final step, cut to
-        end at ``duration``, aside).
-    progress : bool
-        Print a progress line (adaptive runs).
-    """
+def _check_arguments(scene, model, x0, p, adaptive, eps, stability, monitor, sink, keep_rows):
+    """Validate :func:`simulate`'s arguments and check the scene (``checks.preflight``);
+    return scene, model, x0, p, stability, monitor, keep_rows."""
     from .checks import preflight
-    from .scene import load_scene
+    from .scene import Scene, load_scene
 
-    scene = load_scene(scene) if isinstance(scene, (str, Path)) else scene
+    if isinstance(scene, (str, Path)):
+        scene = load_scene(scene)
+    if not isinstance(scene, Scene):
+        raise TypeError(f"`scene` must be a Scene, got {type(scene).__name__} {scene!r}; load a "
+                        "file with symcushion.scene.load_scene(path).")
     model = model or build_model(scene)
     x0 = initial_state(scene) if x0 is None else np.asarray(x0, dtype=float)
     if x0.shape != (model.nx,):
         raise ValueError(f"`x0` must have shape ({model.nx},), got {x0.shape}.")
-    p = _default_p(scene) if p is None else np.asarray(p, dtype=float)
+    p = model.default_p if p is None else np.asarray(p, dtype=float)
     if p.shape != (model.np,):
         raise ValueError(f"`p` must have {model.np} entries {model.param_names}, got {p.shape}.")
     if stability is True or stability is False:
@@ -202,42 +179,113 @@ def simulate(scene: Scene | str | Path, *, model: StepModel | None = None, x0=No
     # the adaptive driver cuts its last step at `duration` and may cap steps at stable_dt
     preflight(scene, model, x0=x0, ignore=("dt_above_duration",) * bool(adaptive)
               + ("dt_unstable",) * bool(stability))
+    if monitor is True:
+        from .monitor import RunMonitor
+
+        monitor = RunMonitor(scene, model, x0=x0)
+    elif monitor is False:
+        monitor = None
+    if monitor is not None and not callable(getattr(monitor, "check", None)):
+        raise TypeError(f"`monitor` must have a check(t, X, Y) method, got {monitor!r}.")
+    if keep_rows is None and sink is not None:
+        keep_rows = KEEP_ROWS
+    if keep_rows is not None and (not isinstance(keep_rows, (int, np.integer)) or keep_rows < 1):
+        raise ValueError(f"`keep_rows` must be a positive integer, got {keep_rows!r}.")
+    return scene, model, x0, p, stability, monitor, keep_rows
+
+
+def simulate(scene, *, model: StepModel | None = None, x0=None, p=None,
+             adaptive: bool = False, eps: float = STEP_CRITERION_EPS,
+             stability: bool | float = False, progress: bool = False, monitor=True,
+             sink=None, keep_rows: int | None = None) -> Trajectory:
+    """Simulate a scene.
+
+    Parameters
+    ----------
+    scene : Scene
+    model : StepModel, optional
+        A model built before by :func:`~symcushion.touchdown.build_model`.
+    x0 : array_like, shape (nx,), optional
+        Initial state; default :func:`~symcushion.touchdown.initial_state`.
+    p : array_like, optional
+        Step parameters (``model.param_names``: curve parameters, μ, gravity, mass,
+        inertia); default ``model.default_p``, the scene's values.
+    adaptive : bool
+        False: fixed Δt, rolled out in blocks of :data:`BLOCK_STEPS` steps by
+        ``touchdown_rollout`` (bit-identical to one rollout of the whole run).
+        True: a Python loop that applies the paper's criterion
+        1 − n_k·n_{k+1} < ``eps`` (§3) by halving Δt for a step (up to
+        :data:`MAX_HALVINGS` times) where a contact normal turns too fast.
+    stability : bool or float
+        Adaptive runs only: also cap each step at :data:`STABILITY_SAFETY`
+        (``True``) or the given fraction in (0, 1] × ``stable_dt`` of its start
+        state. ``info`` then has ``stability_capped``; every adaptive run
+        reports ``dt_min``, the smallest step taken (the final step aside).
+    progress : bool
+        Show a progress bar on the terminal (tqdm; silent when not a TTY) and
+        print monitor findings as ``warning:`` lines instead of raising
+        :class:`RunWarning` through :mod:`warnings`.
+    monitor : bool or object, optional
+        ``True`` (default): :class:`symcushion.monitor.RunMonitor` checks every
+        block (penetration, pass-through, non-finite state, energy growth;
+        docs/checks.md); ``False``: no checks. Or an object that
+        has ``check(t, X, Y) -> list`` of findings (objects with ``.to_dict()``,
+        ``.severity``, ``.message``), called once per block with t (B,) s and
+        the states X (nx, B) and outputs Y (ny, B) after each step. Findings
+        are recorded in ``info['warnings']`` and ``info['events']``.
+    sink : symcushion.results.ResultWriter, optional
+        Receives every row as it is computed. The returned trajectory then
+        keeps at most about 2 × ``keep_rows`` rows (every ``info['stride']``-th).
+    keep_rows : int, optional
+        Default :data:`KEEP_ROWS` with a sink, all rows without one.
+    """
+    scene, model, x0, p, stability, monitor, keep_rows = _check_arguments(
+        scene, model, x0, p, adaptive, eps, stability, monitor, sink, keep_rows)
     started = time.perf_counter()
-    if not adaptive:
-        steps = scene.steps
-        X, Y = model.rollout(steps)(x0, p, scene.dt)
-        t = scene.dt * np.arange(steps + 1)
-        traj = trajectory_from(model, x0, X, Y, t)
-        traj.info = {"dt": scene.dt, "steps": steps, "halvings": 0,
-                     "final_state": np.asarray(X, dtype=float)[:, -1]}
-    else:
-        traj = _simulate_adaptive(model, x0, p, eps, progress, stability)
+    recorder = _Recorder(model, x0, sink, monitor, progress, keep_rows)
+    try:
+        if not adaptive:
+            info = _run_fixed(model, x0, p, recorder)
+        else:
+            info = _run_adaptive(model, x0, p, eps, recorder, stability)
+    finally:
+        recorder.bar.close()
+    traj = recorder.finish(scene.gravity)
+    traj.info.update(info)
     traj.info["criterion_max"] = float(np.nanmax(traj.criterion)) if traj.criterion.size else 0.0
     traj.info["wall_seconds"] = time.perf_counter() - started
     traj.info["method"] = scene.method
-    if not np.all(np.isfinite(traj.position)):
-        raise FloatingPointError("the simulation produced non-finite body positions; "
-                                 "reduce `dt` or check the scene (see info).")
+    traj.info["gravity"] = scene.gravity      # the vertical of the angles, for Trajectory.load
+    traj.info["name"] = scene.name
     return traj
 
 
-def _normals(model, y):
-    N = model.n_legs
-    y = np.asarray(y, float).ravel()
-    yl = output_layout(N)
-    return yl.legs(y, "contact") > 0.5, yl.legs(y, "normal")
-
-
-def _simulate_adaptive(model, x0, p, eps, progress, stability=0.0):
+def _run_fixed(model, x0, p, recorder) -> dict:
     scene = model.scene
-    step = model.step
+    steps, dt, done, x = scene.steps, scene.dt, 0, x0
+    while done < steps:
+        block = min(BLOCK_STEPS, steps - done)
+        X, Y = model.rollout(block)(x, p, dt)
+        X, Y = np.asarray(X, float), np.asarray(Y, float)
+        recorder.block(dt * np.arange(done + 1, done + block + 1), X, Y)
+        x, done = X[:, -1], done + block
+    return {"dt": dt, "steps": steps, "halvings": 0, "final_state": x}
+
+
+def _normals(model, y):
+    yl = output_layout(model.n_legs)
+    y = np.asarray(y, float).ravel()
+    return yl.legs(y, "in_contact") > 0.5, yl.legs(y, "normal")
+
+
+def _run_adaptive(model, x0, p, eps, recorder, stability=0.0) -> dict:
+    scene, step = model.scene, model.step
     t_end, dt = scene.duration, scene.dt
-    t, x = 0.0, x0
-    ts, xs, ys = [0.0], [], []
+    t, x, steps = 0.0, x0, 0
+    ts, xs, ys = [], [], []
     last_contact, last_normal = None, None
     halvings = capped = 0
     dt_min = np.inf
-    next_report = time.perf_counter() + 1.0
     while t < t_end - 1e-12 * t_end:
         h = min(dt, t_end - t)
         if stability:
@@ -259,29 +307,33 @@ def _simulate_adaptive(model, x0, p, eps, progress, stability=0.0):
         if h < t_end - t - 1e-12 * t_end:       # not the final, shortened step
             dt_min = min(dt_min, h)
         t += h
+        steps += 1
         ts.append(t)
         xs.append(x)
         ys.append(np.asarray(y, float).ravel())
+        if len(ts) == BLOCK_STEPS:
+            recorder.block(np.array(ts), np.column_stack(xs), np.column_stack(ys))
+            ts, xs, ys = [], [], []
         last_contact, last_normal = contact, normal
-        if progress and time.perf_counter() > next_report:
-            print(f"\r  t = {t:.4f} / {t_end:g} s, {len(ts) - 1} steps, {halvings} halvings",
-                  end="", flush=True)
-            next_report = time.perf_counter() + 1.0
-    if progress:
-        print()
-    traj = trajectory_from(model, x0, np.column_stack(xs), np.column_stack(ys), np.array(ts))
-    traj.info = {"dt": dt, "steps": len(ts) - 1, "halvings": halvings, "eps": eps,
-                 "final_state": x, "dt_min": dt_min}
+    if ts:
+        recorder.block(np.array(ts), np.column_stack(xs), np.column_stack(ys))
+    info = {"dt": dt, "steps": steps, "halvings": halvings, "eps": eps, "final_state": x,
+            "dt_min": dt_min}
     if stability:
-        traj.info["stability_capped"] = capped
-    return traj
+        info["stability_capped"] = capped
+    return info
 
 
-def save(traj: Trajectory, out_dir, stem: str):
-    """Write ``stem.csv`` and ``stem.npz`` into ``out_dir``; return their paths."""
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    csv, npz = out / f"{stem}.csv", out / f"{stem}.npz"
-    traj.save_csv(csv)
-    traj.save_npz(npz)
-    return csv, npz
+def save(traj: Trajectory, out_dir, name: str, metadata: dict | None = None) -> dict:
+    """Write a trajectory held in memory to the result directory ``out_dir/name``.
+
+    Writes ``trajectory.csv``, ``trajectory.npz`` and ``run.json`` atomically
+    (``symcushion.results``); a long run streams instead (``simulate(...,
+    sink=ResultWriter(...))``). Returns the paths as a dict.
+    """
+    from .results import ResultWriter, result_dir, trajectory_columns
+
+    directory = result_dir(out_dir, name, "out_dir")
+    with ResultWriter(directory, trajectory_columns(traj.n_legs)) as writer:
+        writer.append(traj.rows)
+        return writer.finish(dict(traj.info, **(metadata or {})))

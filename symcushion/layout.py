@@ -107,7 +107,7 @@ BODY_OUT_FIELDS = (
 )
 #: Leg block of the per-step output: 14 entries per leg.
 LEG_OUT_FIELDS = (
-    Field("contact", "1", "1 if the foot is in contact at the end of the step"),
+    Field("in_contact", "1", "1 if the foot is in contact at the end of the step"),
     Field("mode", "1", "contact mode code, see MODES"),
     Field("force", "N", "force on the foot from the obstacle, world frame", _XYZ),
     Field("normal", "1", "unit outward obstacle normal at the contact (0 when free)", _XYZ),

@@ -72,6 +72,6 @@ def measures_function(scene) -> ca.Function:
         return ca.vertcat(*yl.legs(y, field)) if n_legs else ca.SX(0, 1)
 
     outputs = [specific_force, legs("stroke"), legs("beta"), legs("gamma_deflection"), tilt,
-               v_up, legs("contact"), ca.vertcat(*depth) if n_legs else ca.SX(0, 1)]
+               v_up, legs("in_contact"), ca.vertcat(*depth) if n_legs else ca.SX(0, 1)]
     return ca.Function("touchdown_measures", [x, y, p], outputs, ["x", "y", "p"],
                        list(MEASURES))

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .results import check_out_dir
 from .scene import load_scene
 from .contact import METHODS
 from .driver import Trajectory, simulate
@@ -186,7 +187,7 @@ def _plot_methods(trajs: dict, title: str, path: Path):
     plt.close(fig)
 
 
-def reproduce(scene_dir="studies", out_dir="figures", methods=METHODS_ORDER,
+def reproduce(scene_dir="studies", out_dir="out/reproduce", methods=METHODS_ORDER,
               duration=None, verbose=True) -> list:
     """Run Figs. 3–4 with every method, write figures/CSVs, print the claims table.
 
@@ -195,7 +196,9 @@ def reproduce(scene_dir="studies", out_dir="figures", methods=METHODS_ORDER,
     scene_dir : path
         Folder holding ``fig3.toml`` and ``fig4.toml``.
     out_dir : path
-        Where figures and CSV files go.
+        Where figures and CSV files go (checked before the runs); the
+        committed figures are ``figures/`` (``symcushion reproduce
+        --update-figures``).
     methods : sequence of str
     duration : float, optional
         Override the scenes' durations (fast checks).
@@ -204,13 +207,12 @@ def reproduce(scene_dir="studies", out_dir="figures", methods=METHODS_ORDER,
     -------
     list of Claims
     """
-    scene_dir, out = Path(scene_dir), Path(out_dir)
+    scene_dir, out = Path(scene_dir), check_out_dir(out_dir, "out_dir")
     for name in ("fig3", "fig4"):
         if not (scene_dir / f"{name}.toml").is_file():
             raise FileNotFoundError(
                 f"{scene_dir / (name + '.toml')} not found; run from the repository root or "
                 "pass --scenes DIR.")
-    out.mkdir(parents=True, exist_ok=True)
     results = []
     started = time.perf_counter()
     for name, paper_fig in (("fig3", "Fig. 3, μ = 0"), ("fig4", "Fig. 4, μ = 0.05")):

@@ -268,7 +268,7 @@ def build_model(scene: Scene) -> StepModel:
         mode = ca.if_else(stays, ca.if_else(slipping, 2.0, 1.0),
                           ca.if_else(active, 3.0, 0.0))
         geo = fns["strut_geometry"].call(dict(r=rho1))
-        outputs.append(dict(contact=ca.if_else(stays, 1.0, 0.0), mode=mode, force=R1 @ P1,
+        outputs.append(dict(in_contact=ca.if_else(stays, 1.0, 0.0), mode=mode, force=R1 @ P1,
                             normal=ca.if_else(stays, normal_w, ca.DM.zeros(3)),
                             axis=R1 @ geo["e_S"], stroke=geo["delta_S"], beta=geo["beta"],
                             gamma_deflection=geo["gamma"] - leg.gamma0))

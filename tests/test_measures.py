@@ -33,7 +33,7 @@ def test_measures_read_the_named_fields(fig4):
     np.testing.assert_allclose(np.asarray(out["specific_force"]).ravel(),
                                yl.get(y, "acceleration") - g, atol=ROUND_OFF)
     np.testing.assert_array_equal(np.asarray(out["stroke"]).ravel(), yl.legs(y, "stroke"))
-    np.testing.assert_array_equal(np.asarray(out["contact"]).ravel(), yl.legs(y, "contact"))
+    np.testing.assert_array_equal(np.asarray(out["contact"]).ravel(), yl.legs(y, "in_contact"))
     assert float(out["one_minus_cos_tilt"]) == pytest.approx(1 - np.cos(0.4), abs=ROUND_OFF)
     up = -g / np.linalg.norm(g)
     assert float(out["upward_speed"]) == pytest.approx(up @ xl.get(x, "velocity"), abs=ROUND_OFF)

@@ -117,7 +117,9 @@ def test_simulate_cli_writes_files(tmp_path):
     text = (ROOT / "studies" / "fig3.toml").read_text().replace("duration = 0.6", "duration = 0.05")
     scene_file.write_text(text)
     assert main(["simulate", str(scene_file), "--out", str(tmp_path), "--method", "implicit"]) == 0
-    assert (tmp_path / "fig3.csv").is_file() and (tmp_path / "fig3.npz").is_file()
+    # the result directory OUT/<scene name> (symcushion.results)
+    result = tmp_path / "fig3"
+    assert (result / "trajectory.csv").is_file() and (result / "trajectory.npz").is_file()
     assert main(["simulate", str(tmp_path / "missing.toml")]) == 2
 
 

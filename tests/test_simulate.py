@@ -228,8 +228,11 @@ def test_trajectory_files(tmp_path):
 
     scene = drop_scene(1e-3, duration=0.05)
     traj = simulate(scene)
-    csv, npz = save(traj, tmp_path, "drop")
-    header = csv.read_text().splitlines()[0].split(",")
-    assert header[0] == "t" and "force_0_2" in header
-    data = np.load(npz)
-    np.testing.assert_array_equal(data["position"], traj.position)
+    files = save(traj, tmp_path, "drop")
+    header = files["csv"].read_text().splitlines()[0].split(",")
+    # self-describing names (symcushion.results): time first, leg 0's vertical force in N
+    assert header[0] == "time_s" and "leg0_force_z_N" in header
+    data = np.load(files["npz"])
+    columns = list(data["columns"])
+    position = data["data"][:, [columns.index(f"body_position_{a}_m") for a in "xyz"]]
+    np.testing.assert_array_equal(position, traj.position)

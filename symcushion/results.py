@@ -1,0 +1,399 @@
+"""The result directory of a run: self-describing columns, atomic and streamed files.
+
+This module owns what a run leaves on disk and how it is read back:
+
+* ``trajectory.csv``: one row per time point, columns named
+  ``{owner}_{field}[_{axis}]_{unit}`` (owner ``body`` or ``leg{j}``, 0-based;
+  unit ``m``, ``m_s``, ``m_s2``, ``rad``, ``rad_s``, ``N``, ``s`` or ``1`` for
+  dimensionless), legs' modes as words (free, stick, slip, lift-off);
+* ``trajectory.npz``: the same table as one float array ``data`` (modes as
+  their codes), with ``columns``, ``units`` and ``metadata`` (a JSON string);
+* ``run.json``: the scene as loaded, method, Δt, duration, versions, the run's
+  events and warnings, and the column list with units.
+
+Every file is written through a temporary file in its own directory and moved
+into place by :func:`os.replace`, so a killed run leaves the previous complete
+file or none. Output paths are checked before any work (:func:`check_out_dir`,
+:func:`result_dir`). It must not simulate or plot: the driver
+(``symcushion.driver``) feeds it rows, ``symcushion.plots`` draws them.
+"""
+from __future__ import annotations
+
+import json
+import os
+import platform
+import tempfile
+import zipfile
+from contextlib import contextmanager
+from pathlib import Path
+
+import numpy as np
+
+from .layout import MODES, output_columns, state_columns
+
+__all__ = ["trajectory_columns", "column_unit", "check_out_dir", "check_output_file",
+           "result_dir", "atomic_write_text", "write_csv", "to_json", "replacing", "ResultWriter",
+           "read_result", "versions",
+           "CSV_NAME", "NPZ_NAME", "JSON_NAME", "UNITS", "MODE_CODES"]
+
+CSV_NAME = "trajectory.csv"
+NPZ_NAME = "trajectory.npz"
+JSON_NAME = "run.json"
+
+#: Unit suffixes of the column names, longest first so that ``_m_s2`` is not
+#: read as ``_s2``; ``1`` marks a dimensionless column.
+UNITS = ("m_s2", "rad_s", "m_s", "rad", "m", "N", "s", "1")
+
+#: Word of each mode code and back (the CSV writes words, the NPZ codes).
+MODE_CODES = {word: code for code, word in MODES.items()}
+
+#: Bytes copied at a time from the raw row file into the NPZ (bounded memory).
+_COPY_CHUNK = 1 << 20
+
+
+
+def _file_mode() -> int:
+    umask = os.umask(0)
+    os.umask(umask)
+    return 0o666 & ~umask
+
+
+#: Permissions of written files: those of open(), 0666 less the umask.
+_FILE_MODE = _file_mode()
+
+
+def trajectory_columns(n_legs: int) -> list:
+    """Column names of ``trajectory.csv``: ``time_s``, the state x, the output y.
+
+    Parameters
+    ----------
+    n_legs : int
+        Number of legs of the scene (≥ 1).
+
+    Returns
+    -------
+    list of str, length 1 + nx + ny
+    """
+    if isinstance(n_legs, bool) or not isinstance(n_legs, (int, np.integer)) or n_legs < 1:
+        raise ValueError(f"`n_legs` must be a positive integer, got {n_legs!r}.")
+    return ["time_s"] + state_columns(int(n_legs)) + output_columns(int(n_legs))
+
+
+def column_unit(name: str) -> str:
+    """Unit suffix of a column name (``'m_s2'`` of ``'body_acceleration_z_m_s2'``)."""
+    for unit in UNITS:
+        if name.endswith("_" + unit):
+            return unit
+    raise ValueError(f"column {name!r} has no unit suffix; expected one of {UNITS}.")
+
+
+# ---------------------------------------------------------------------------
+# output paths, checked before any work
+# ---------------------------------------------------------------------------
+def check_out_dir(path, argument: str = "--out") -> Path:
+    """Check that ``path`` is, or can be made, a writable directory; create it.
+
+    Called before a run so that a bad output path fails in a second, not after
+    the simulation. Rejects a path that is a file, lies under a file, or is in
+    a directory that cannot be written.
+
+    Parameters
+    ----------
+    path : str or Path
+    argument : str
+        Name of the argument, for the message (``--out``, ``out_dir``).
+
+    Returns
+    -------
+    Path
+        The directory, existing and writable.
+    """
+    if path is None or str(path) == "":
+        raise ValueError(f"`{argument}` must be a directory path, got {path!r}.")
+    out = Path(path)
+    for parent in [out, *out.parents]:
+        if parent.exists() and not parent.is_dir():
+            where = "is" if parent == out else f"lies under {parent}, which is"
+            raise ValueError(f"`{argument}` {out} {where} a file, not a directory; "
+                             "give a directory path.")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(dir=out, prefix=".write-probe-")
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise ValueError(f"`{argument}` {out} cannot be written ({exc.strerror}); give a "
+                         "directory you may write to.") from None
+    return out
+
+
+def check_output_file(path, argument: str = "--out") -> Path:
+    """Check that a file may be written at ``path`` (its directory is made writable)."""
+    if path is None or str(path) == "":
+        raise ValueError(f"`{argument}` must be a file path, got {path!r}.")
+    path = Path(path)
+    if path.is_dir():
+        raise ValueError(f"`{argument}` {path} is a directory; give a file path.")
+    for parent in path.parents:
+        if parent.exists() and not parent.is_dir():
+            raise ValueError(f"`{argument}` {path} lies under {parent}, which is a file, not a "
+                             "directory; give a path in a directory.")
+    check_out_dir(path.parent if str(path.parent) else ".", argument)
+    return path
+
+
+def result_dir(out_dir, name: str, argument: str = "--out") -> Path:
+    """The result directory ``out_dir/name``, checked and created.
+
+    ``name`` (the scene's name) must be a plain name: no path separator, not
+    ``.`` or ``..``, not absolute, so that a run never writes outside ``out_dir``.
+    """
+    if not isinstance(name, str) or not name.strip():
+        raise ValueError(f"the scene `name` must be a non-empty string, got {name!r}.")
+    bad = (os.sep in name or "/" in name or (os.altsep and os.altsep in name)
+           or name in (".", "..") or Path(name).is_absolute())
+    if bad:
+        raise ValueError(f"the scene `name` {name!r} must be a plain file name (no '/', "
+                         "'..' or absolute path): results go to OUT/<name>; rename it, "
+                         "e.g. name = \"drop_1\".")
+    out = check_out_dir(out_dir, argument)
+    return check_out_dir(out / name, argument)
+
+
+def _temporary(path: Path, mode: str):
+    """A temporary file beside ``path`` (same directory: os.replace is atomic there)."""
+    # the real suffix last, so that writers that infer a format from it still can
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.",
+                               suffix=f".tmp{path.suffix}")
+    os.chmod(tmp, _FILE_MODE)       # mkstemp makes 0600; results are ordinary files
+    return os.fdopen(fd, mode, **({"newline": ""} if "b" not in mode else {})), Path(tmp)
+
+
+def atomic_write_text(path, text: str) -> Path:
+    """Write ``text`` to ``path`` through a temporary file and :func:`os.replace`."""
+    path = Path(path)
+    fh, tmp = _temporary(path, "w")
+    try:
+        with fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return path
+
+
+@contextmanager
+def replacing(path):
+    """Yield a temporary path beside ``path``; move it onto ``path`` if the block succeeds.
+
+    For writers that take a file name (``savefig``, animation writers): a
+    failure or a kill leaves the previous ``path`` or none, never half a file.
+    """
+    path = Path(path)
+    fh, tmp = _temporary(path, "wb")
+    fh.close()
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def versions() -> dict:
+    """Versions of symcushion, CasADi, NumPy and Python (for ``run.json``)."""
+    import casadi
+
+    from . import __version__
+
+    return {"symcushion": __version__, "casadi": casadi.__version__, "numpy": np.__version__,
+            "python": platform.python_version()}
+
+
+def _json_default(value):
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, (np.floating, np.integer, np.bool_)):
+        return value.item()
+    return str(value)
+
+
+def to_json(data) -> str:
+    """JSON text of ``data`` (arrays as lists, NaN and inf as null: strict JSON)."""
+    def clean(v):
+        if isinstance(v, dict):
+            return {str(k): clean(x) for k, x in v.items()}
+        if isinstance(v, (list, tuple)):
+            return [clean(x) for x in v]
+        if isinstance(v, np.ndarray):
+            return clean(v.tolist())
+        if isinstance(v, (float, np.floating)):
+            return float(v) if np.isfinite(v) else None
+        return v
+    return json.dumps(clean(data), indent=2, default=_json_default, allow_nan=False)
+
+
+def _csv_formatter(columns):
+    """A function turning rows (k, C) into CSV text: %.17g, modes as words."""
+    modes = [i for i, c in enumerate(columns) if c.endswith("_mode_1")]
+    # %.17g round-trips every double; a mode code becomes its word
+    fmt = ",".join("%s" if i in modes else "%.17g" for i in range(len(columns))) + "\n"
+
+    def format_rows(rows):
+        lines = []
+        for row in rows.tolist():
+            for i in modes:
+                row[i] = MODES.get(int(round(row[i])), "unknown")
+            lines.append(fmt % tuple(row))
+        return "".join(lines)
+    return format_rows
+
+
+def write_csv(path, columns, rows) -> Path:
+    """Write rows (k, C) under a header of ``columns`` to ``path``, atomically."""
+    columns = list(columns)
+    rows = np.asarray(rows, dtype=float)
+    if rows.ndim != 2 or rows.shape[1] != len(columns):
+        raise ValueError(f"`rows` must have shape (k, {len(columns)}), got {rows.shape}.")
+    return atomic_write_text(path, ",".join(columns) + "\n" + _csv_formatter(columns)(rows))
+
+
+# ---------------------------------------------------------------------------
+# streamed writer
+# ---------------------------------------------------------------------------
+class ResultWriter:
+    """Write a run's rows to ``trajectory.csv`` and ``.npz`` block by block.
+
+    Rows go to temporary files in the result directory as they come
+    (:meth:`append`), so memory does not grow with the run; :meth:`finish`
+    writes ``run.json`` and moves every file into place with :func:`os.replace`;
+    :meth:`abort` (or an exception inside ``with``) removes the temporary files
+    and leaves the previous results untouched.
+
+    Parameters
+    ----------
+    directory : Path
+        The result directory (from :func:`result_dir`).
+    columns : list of str
+        Column names (:func:`trajectory_columns`).
+    """
+
+    def __init__(self, directory, columns):
+        self.directory = Path(directory)
+        self.columns = list(columns)
+        self.rows = 0
+        self._format = _csv_formatter(self.columns)
+        self._csv, self._csv_tmp = _temporary(self.directory / CSV_NAME, "w")
+        self._raw, self._raw_tmp = _temporary(self.directory / NPZ_NAME, "wb")
+        self._csv.write(",".join(self.columns) + "\n")
+        self._done = False
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, value, tb):
+        if kind is not None:
+            self.abort()
+        return False
+
+    def append(self, rows):
+        """Append rows, shape (k, len(columns)), SI units, modes as codes."""
+        rows = np.ascontiguousarray(rows, dtype=float)
+        if rows.ndim != 2 or rows.shape[1] != len(self.columns):
+            raise ValueError(f"`rows` must have shape (k, {len(self.columns)}), got {rows.shape}.")
+        self._csv.write(self._format(rows))
+        self._raw.write(rows.tobytes())
+        self.rows += rows.shape[0]
+
+    def finish(self, metadata: dict) -> dict:
+        """Close the files, write ``run.json`` and move everything into place.
+
+        Returns
+        -------
+        dict
+            Paths of ``csv``, ``npz`` and ``json``.
+        """
+        metadata = dict(metadata, rows=self.rows,
+                        columns=[{"name": c, "unit": column_unit(c)} for c in self.columns])
+        text = to_json(metadata)
+        try:
+            self._csv.close()
+            self._raw.close()
+            npz_fh, npz_tmp = _temporary(self.directory / NPZ_NAME, "wb")
+            npz_fh.close()
+            try:
+                self._write_npz(npz_tmp, text)
+                files = {"csv": self.directory / CSV_NAME, "npz": self.directory / NPZ_NAME,
+                         "json": self.directory / JSON_NAME}
+                os.replace(self._csv_tmp, files["csv"])
+                os.replace(npz_tmp, files["npz"])
+            finally:
+                npz_tmp.unlink(missing_ok=True)
+            atomic_write_text(files["json"], text + "\n")
+        finally:
+            self.abort()
+        return files
+
+    def _write_npz(self, target: Path, metadata_text: str):
+        """NPZ of the raw rows, copied in chunks (no full array in memory)."""
+        shape = (self.rows, len(self.columns))
+        with zipfile.ZipFile(target, "w", zipfile.ZIP_STORED, allowZip64=True) as zf:
+            with zf.open("data.npy", "w", force_zip64=True) as member:
+                np.lib.format.write_array_header_1_0(
+                    member, {"descr": np.lib.format.dtype_to_descr(np.dtype(float)),
+                             "fortran_order": False, "shape": shape})
+                with open(self._raw_tmp, "rb") as raw:
+                    while chunk := raw.read(_COPY_CHUNK):
+                        member.write(chunk)
+            for key, value in (("columns", np.array(self.columns)),
+                               ("units", np.array([column_unit(c) for c in self.columns])),
+                               ("metadata", np.array(metadata_text))):
+                with zf.open(f"{key}.npy", "w") as member:
+                    np.lib.format.write_array(member, value, allow_pickle=False)
+
+    def abort(self):
+        """Close and remove the temporary files (previous results stay)."""
+        if self._done:
+            return
+        self._done = True
+        for fh in (self._csv, self._raw):
+            fh.close()
+        for tmp in (self._csv_tmp, self._raw_tmp):
+            tmp.unlink(missing_ok=True)
+
+
+# ---------------------------------------------------------------------------
+# reading back
+# ---------------------------------------------------------------------------
+def read_result(directory) -> tuple[list, np.ndarray, dict]:
+    """Read a result directory: column names, rows (modes as codes), run.json.
+
+    Reads ``trajectory.npz`` when present (exact and fast), else the CSV.
+
+    Returns
+    -------
+    columns : list of str
+    data : ndarray, shape (T, C)
+    metadata : dict
+    """
+    directory = Path(directory)
+    if not directory.is_dir():
+        raise FileNotFoundError(f"result directory {directory} not found; give the folder a "
+                                "run wrote (OUT/<scene name>).")
+    json_path = directory / JSON_NAME
+    metadata = json.loads(json_path.read_text()) if json_path.is_file() else {}
+    npz = directory / NPZ_NAME
+    if npz.is_file():
+        with np.load(npz, allow_pickle=False) as z:
+            return [str(c) for c in z["columns"]], np.array(z["data"]), metadata
+    csv = directory / CSV_NAME
+    if not csv.is_file():
+        raise FileNotFoundError(f"{directory} holds neither {NPZ_NAME} nor {CSV_NAME}; give "
+                                "the folder a run wrote.")
+    with open(csv) as fh:
+        columns = fh.readline().strip().split(",")
+    modes = {i for i, c in enumerate(columns) if c.endswith("_mode_1")}
+    converters = {i: (lambda s: float(MODE_CODES[s.strip()])) for i in modes}
+    data = np.loadtxt(csv, delimiter=",", skiprows=1, converters=converters, ndmin=2,
+                      encoding="utf-8")
+    return columns, data, metadata

@@ -1,0 +1,176 @@
+"""Command line: help, version, overrides, output checks before the run, killed runs."""
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from symcushion import __version__, cli
+
+ROOT = Path(__file__).resolve().parents[1]
+FIG3 = ROOT / "studies" / "fig3.toml"
+COMMANDS = ("reproduce", "simulate", "plot", "codegen", "optimise", "envelope")
+
+#: Seconds a killed run may take to exit after SIGTERM.
+KILL_TIMEOUT = 60
+
+
+def test_version(capsys):
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["--version"])
+    assert exc.value.code == 0
+    assert capsys.readouterr().out.strip() == f"symcushion {__version__}"
+
+
+@pytest.mark.parametrize("command", (None,) + COMMANDS)
+def test_every_help_is_plain_text(command, capsys):
+    with pytest.raises(SystemExit) as exc:
+        cli.main(([command] if command else []) + ["--help"])
+    assert exc.value.code == 0
+    text = capsys.readouterr().out
+    assert "usage: symcushion" in text and "`" not in text
+    if command == "simulate":
+        for option in ("--duration", "--dt", "--mu", "--method", "--no-plots", "--strict",
+                       "--out"):
+            assert option in text
+        assert "(default: out)" in text
+
+
+def test_simulate_overrides_apply(tmp_path, capsys):
+    code = cli.main(["simulate", str(FIG3), "--out", str(tmp_path), "--duration", "0.02",
+                     "--dt", "0.002", "--mu", "0.1", "--method", "robust", "--no-plots"])
+    assert code == 0
+    meta = json.loads((tmp_path / "fig3" / "run.json").read_text())
+    summary = meta["scene_summary"]
+    assert (summary["duration"], summary["dt"], summary["mu"], summary["method"]) == \
+        (0.02, 0.002, 0.1, "robust")
+    assert meta["steps"] == 10 and meta["rows"] == 11
+    assert meta["overrides"] == {"duration": 0.02, "dt": 0.002, "mu": 0.1, "method": "robust"}
+    assert meta["scene"]["body"]["mass"] == 50.0        # the scene file as loaded
+    assert set(meta["versions"]) >= {"symcushion", "casadi", "numpy"}
+    assert not (tmp_path / "fig3" / "summary.png").exists()
+
+
+def test_simulate_writes_figures(tmp_path):
+    code = cli.main(["simulate", str(FIG3), "--out", str(tmp_path), "--duration", "0.05",
+                     "--frames", "5"])
+    assert code == 0
+    from PIL import Image
+
+    with Image.open(tmp_path / "fig3" / "animation.gif") as gif:
+        assert gif.n_frames == 5
+    assert (tmp_path / "fig3" / "summary.png").stat().st_size > 10_000
+    (tmp_path / "fig3" / "summary.png").unlink()
+    assert cli.main(["plot", str(tmp_path / "fig3"), "--no-animation"]) == 0
+    assert (tmp_path / "fig3" / "summary.png").is_file()
+
+
+@pytest.mark.parametrize("where", ("file", "under_file"))
+def test_bad_out_fails_before_the_run(tmp_path, monkeypatch, capsys, where):
+    def no_build(*args, **kwargs):
+        raise AssertionError("the model was built before the output path was checked")
+
+    monkeypatch.setattr("symcushion.simulate.build_model", no_build)
+    afile = tmp_path / "afile"
+    afile.write_text("x")
+    out = afile if where == "file" else afile / "sub"
+    assert cli.main(["simulate", str(FIG3), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "`--out`" in err and "file" in err and "Traceback" not in err
+
+
+def test_codegen_checks_out_first(tmp_path, capsys):
+    afile = tmp_path / "afile"
+    afile.write_text("x")
+    assert cli.main(["codegen", "--out", str(afile / "c")]) == 2
+    assert "`out_dir`" in capsys.readouterr().err
+
+
+def test_scene_name_cannot_escape_out(tmp_path, capsys):
+    text = FIG3.read_text().replace('name = "fig3"', 'name = "../escaped"')
+    scene = tmp_path / "escape.toml"
+    scene.write_text(text)
+    assert cli.main(["simulate", str(scene), "--out", str(tmp_path / "out"), "--no-plots"]) == 2
+    assert "plain file name" in capsys.readouterr().err
+    assert not (tmp_path / "escaped").exists()
+
+
+@pytest.mark.parametrize("args, field", ((["--dt", "-1"], "--dt"),
+                                         (["--duration", "0"], "--duration"),
+                                         (["--mu", "-0.1"], "--mu")))
+def test_bad_overrides_name_the_option(tmp_path, capsys, args, field):
+    assert cli.main(["simulate", str(FIG3), "--out", str(tmp_path)] + args) == 2
+    assert f"`{field}`" in capsys.readouterr().err
+
+
+def test_strict_turns_warnings_into_an_exit_status(tmp_path, monkeypatch, capsys):
+    from test_results import FakeMonitor
+
+    monkeypatch.setattr(cli, "_run_monitor", lambda scene, model: FakeMonitor())
+    base = ["simulate", str(FIG3), "--out", str(tmp_path), "--duration", "0.02", "--no-plots"]
+    assert cli.main(base) == 0
+    assert "warning: t = " in capsys.readouterr().err
+    assert cli.main(base + ["--strict"]) == cli.EXIT_WARNINGS
+    meta = json.loads((tmp_path / "fig3" / "run.json").read_text())
+    assert meta["warnings"][0]["message"] == "fake finding"
+
+
+def test_reproduce_writes_a_new_folder_not_figures(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    code = cli.main(["reproduce", "--scenes", str(ROOT / "studies"), "--duration", "0.01"])
+    assert code == 0
+    assert (tmp_path / "out" / "reproduce" / "claims.md").is_file()
+    assert not (tmp_path / "figures").exists()
+    assert cli.main(["reproduce", "--out", "x", "--update-figures"]) == 2
+
+
+def _run_and_kill(out: Path, duration: float):
+    """Start a long simulate in a subprocess; SIGTERM it while it writes; wait for it."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    proc = subprocess.Popen([sys.executable, "-m", "symcushion.cli", "simulate", str(FIG3),
+                             "--out", str(out), "--duration", str(duration), "--no-plots"],
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    directory = out / "fig3"
+    deadline = time.monotonic() + KILL_TIMEOUT
+    while time.monotonic() < deadline:        # wait for rows in the temporary CSV
+        tmp = [p for p in directory.glob(".trajectory.csv.*")] if directory.is_dir() else []
+        if tmp and tmp[0].stat().st_size > 100_000:
+            break
+        time.sleep(0.05)
+    else:
+        proc.kill()
+        pytest.fail("the run never started writing")
+    proc.send_signal(signal.SIGTERM)
+    proc.communicate(timeout=KILL_TIMEOUT)
+    return proc.returncode, directory
+
+
+def test_killed_run_leaves_the_previous_complete_file(tmp_path):
+    out = tmp_path / "out"
+    assert cli.main(["simulate", str(FIG3), "--out", str(out), "--duration", "0.03",
+                     "--no-plots"]) == 0
+    before = {p.name: p.read_bytes() for p in (out / "fig3").iterdir()}
+    code, directory = _run_and_kill(out, 100.0)
+    assert code == 128 + signal.SIGTERM
+    assert {p.name: p.read_bytes() for p in directory.iterdir()} == before
+
+
+def test_killed_first_run_leaves_no_file(tmp_path):
+    code, directory = _run_and_kill(tmp_path / "out", 100.0)
+    assert code == 128 + signal.SIGTERM
+    assert list(directory.iterdir()) == []
+
+
+@pytest.mark.parametrize("command", (["optimise", str(ROOT / "studies" / "absorber_1d.toml")],
+                                     ["envelope", str(ROOT / "studies" / "envelope_lander.toml")]))
+def test_study_outputs_are_checked_before_the_work(tmp_path, capsys, command):
+    afile = tmp_path / "afile"
+    afile.write_text("x")
+    out = afile / "result.json" if command[0] == "optimise" else afile
+    assert cli.main(command + ["--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "`--out`" in err and "file" in err
