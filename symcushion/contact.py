@@ -50,6 +50,7 @@ __all__ = [
     "INPUT_NAMES",
     "METHODS",
     "OUTPUT_NAMES",
+    "POLE_TOL",
     "ROOT_TOL",
     "TINY",
     "UNIT_TOL",
@@ -78,10 +79,25 @@ DET_TOL = 1e-12
 # rejects the squared equation's roots of lam |g| = -mu N (relative residual
 # 2) and the real parts of complex pairs more than ~1e-3 off the real axis.
 ROOT_TOL = 1e-6
-# Newton steps of the implicit step on the chosen root of the quartic: one
-# reaches round-off from a candidate accepted at ROOT_TOL, the second makes
-# the derivative of the last step the implicit-function derivative.
-FINAL_STEPS = 2
+# Newton steps of the implicit step on the chosen root of the quartic: a
+# candidate accepted at ROOT_TOL (with a stiff normal coupling, relative to
+# |N_t| + |a.g| rather than N) can be off by ~1e-3 relative; two steps reach
+# round-off, the third makes the derivative of the last step the
+# implicit-function derivative.
+FINAL_STEPS = 3
+# Each of those steps moves lam by at most FINAL_CLIP lam, so that a flat Q
+# (a double root) cannot throw it onto another root.
+FINAL_CLIP = 1e-2
+# A root r of det(K + lam I) is a pole of the implicit step's g(lam) only if
+# |adj(K + r I) p| > POLE_TOL (|K|_F + r) |p|: the residue is exactly 0 when
+# p is an eigenvector of K (plane-parallel motion) and round-off leaves it at
+# ~1e-16 relative; 1e-12 sits well above that.
+POLE_TOL = 1e-12
+# Round-off of N = N_t - a.g relative to |N_t| + |a.g| that the check of a
+# candidate tolerates on top of ROOT_TOL: with a stiff normal coupling (an
+# axially rigid rod, cond(D_p) ~ 1e8) N is a small difference of large terms;
+# the hard case `stiff_axial` needs 1e-14 (lifts off spuriously with 0).
+CANCEL_TOL = 1e-12
 # The implicit step's root scale c stays within this factor of the
 # tangential stiffness |K|_F + mu |a|: slips of interest have lam = mu N/|g|
 # within a few decades of it, and the guard keeps c finite when the quartic
@@ -377,16 +393,23 @@ def _coulomb_check(lam, g1, g2, ok, a1, a2, N_t, mu, N_min):
     It is when `ok` (the slip is well defined), the normal force
     N = N_t - a.g exceeds N_min (compressive beyond round-off) and the
     secular equation lam |g| = mu N holds to ROOT_TOL (the squared quartic
-    also has the roots of lam |g| = -mu N, removed here). Returns (valid, |g|).
+    also has the roots of lam |g| = -mu N, removed here by N > 0).
+    Returns (valid, |g|^2).
     """
-    g_norm = _safe_sqrt(g1 * g1 + g2 * g2)
+    gg = g1 * g1 + g2 * g2
     N = N_t - (a1 * g1 + a2 * g2)
-    lhs, rhs = lam * g_norm, mu * N
+    # lam |g| = mu N with both sides >= 0, compared squared (no square root):
+    # |A - B| <= ROOT_TOL (A + B) for A, B >= 0 is within a factor 2 of the
+    # relative test on lam |g| - mu N.
+    # The tolerance scales with |N_t| + |a.g|, not N: with a stiff normal
+    # coupling N is a difference of large terms and carries their round-off.
+    lhs, rhs = lam * lam * gg, mu * mu * N * N
+    N_scale = ca.fabs(N_t) + ca.fabs(a1 * g1) + ca.fabs(a2 * g2)
     valid = ca.logic_and(
         ca.logic_and(ok, N > N_min),
-        ca.fabs(lhs - rhs) <= ROOT_TOL * (lhs + ca.fabs(rhs)),
+        ca.fabs(lhs - rhs) <= ROOT_TOL * (lhs + rhs) + CANCEL_TOL * mu * mu * N_scale * N_scale,
     )
-    return valid, g_norm
+    return valid, gg
 
 
 def _secular_slip(lam, K11, K12, K21, K22, T, K_norm):
@@ -398,6 +421,28 @@ def _secular_slip(lam, K11, K12, K21, K22, T, K_norm):
     ok = ca.fabs(det) > DET_TOL * (lam + K_norm) ** 2
     inv = 1.0 / ca.if_else(ok, det, 1.0)
     return (lam + K22) * T * inv, -K21 * T * inv, ok
+
+
+def _largest_pole(K11, K12, K21, K22, K_norm):
+    """The largest lam > 0 where g(lam) = (K + lam I)^-1 p, p = (T, 0), has a pole; 0 if none.
+
+    det(K + lam I) = lam^2 + tr lam + det K has real roots when
+    tr^2 - 4 det K >= 0. A positive root r is a pole of g only if the residue
+    adj(K + r I) p = T (r + K22, -K21) is not zero (to POLE_TOL): it vanishes
+    when p is an eigenvector of K, and g then passes r smoothly.
+    """
+    tr = K11 + K22
+    det_K = K11 * K22 - K12 * K21
+    disc = tr * tr - 4 * det_K
+    q = -0.5 * (tr + _sign_plus(tr) * _safe_sqrt(disc))
+    lam_p = ca.SX(0.0)
+    for r in (_safe_div(det_K, q), q):
+        active = ca.logic_and(
+            ca.logic_and(disc >= 0, r > lam_p),
+            _safe_sqrt((r + K22) ** 2 + K21 * K21) > POLE_TOL * (K_norm + r),
+        )
+        lam_p = ca.if_else(active, r, lam_p)
+    return lam_p
 
 
 def _family_slips(K11, K12, K21, K22, a1, a2, T, N_t, mu, K_norm):
@@ -476,6 +521,7 @@ def _implicit(P0, Dp, n, l, mu, u0, friction):
     K_norm = _safe_sqrt(K11**2 + K12**2 + K21**2 + K22**2)
     lams = [ca.SX(0.0)]  # the frictionless slide g = K^-1 p
     if friction:
+        lams = []
         T2 = T_t * T_t
         # R(lam) = N_t det(K + lam I) - a.adj(K + lam I) p = r2 lam^2 + r1 lam + r0
         r2 = N_t
@@ -496,6 +542,10 @@ def _implicit(P0, Dp, n, l, mu, u0, friction):
         mean = _safe_sqrt(_safe_sqrt(_safe_div(ca.fabs(Q[0]), ca.fabs(Q[4]))))
         c = ca.fmin(ca.fmax(mean, stiff / ROOT_SCALE_RANGE), stiff * ROOT_SCALE_RANGE)
         lams += quartic_roots(Q, c)
+        # lam = 0 (the frictionless slide) solves lam |g| = mu N only when
+        # mu N = 0: at mu = 0 it replaces the first root (the quartic is then
+        # T^2 lam^2 |w|^2, whose roots are 0 and complex).
+        lams[0] = ca.if_else(mu > 0, lams[0], 0.0)
     candidates = [(lam, *_secular_slip(lam, K11, K12, K21, K22, T_t, K_norm)) for lam in lams]
     if friction:
         candidates += _family_slips(K11, K12, K21, K22, a1, a2, T_t, N_t, mu, K_norm)
@@ -505,11 +555,16 @@ def _implicit(P0, Dp, n, l, mu, u0, friction):
     found = ca.SX(0)
     lam_best = g1 = g2 = best = family = ca.SX(0.0)
     # A slip ending at N of round-off (P ~ 0: the foot slides off its load)
-    # is lift-off, not contact: N must exceed CONE_TOL |P_t|.
+    # is lift-off, not contact: N must exceed CONE_TOL |P_t|. A solution
+    # counts only on the branch lam > lam_p connected to small slip (lam ->
+    # inf): below the largest pole lam_p of g(lam) the foot would slide
+    # through infinity to get there (snap-through), docs/contact.md.
     N_min = CONE_TOL * _safe_sqrt(N_t * N_t + T_t * T_t)
+    lam_p = _largest_pole(K11, K12, K21, K22, K_norm)
     for i, (lam, h1, h2, ok) in enumerate(candidates):
-        valid, h_norm = _coulomb_check(lam, h1, h2, ok, a1, a2, N_t, mu, N_min)
-        better = ca.logic_and(valid, ca.logic_or(ca.logic_not(found), h_norm < best))
+        on_branch = ca.logic_or(lam > lam_p, lam_p <= 0)
+        valid, h_norm = _coulomb_check(lam, h1, h2, ca.logic_and(ok, on_branch), a1, a2, N_t, mu, N_min)
+        better = ca.logic_and(valid, ca.logic_or(ca.logic_not(found), lam > lam_best))
         lam_best = ca.if_else(better, lam, lam_best)
         g1, g2 = ca.if_else(better, h1, g1), ca.if_else(better, h2, g2)
         best = ca.if_else(better, h_norm, best)
@@ -519,12 +574,12 @@ def _implicit(P0, Dp, n, l, mu, u0, friction):
         # Polish the chosen root on Q itself: the candidates are accepted at
         # ROOT_TOL, this brings lam to round-off (Coulomb-exact), and its
         # derivative is then the implicit-function one. Each step is clipped
-        # to ROOT_TOL lam so that a flat Q (double root) cannot move it away.
+        # to FINAL_CLIP lam so that a flat Q (double root) cannot move it far.
         lam = lam_best
         for _ in range(FINAL_STEPS):
             f = (((Q[4] * lam + Q[3]) * lam + Q[2]) * lam + Q[1]) * lam + Q[0]
             df = ((4 * Q[4] * lam + 3 * Q[3]) * lam + 2 * Q[2]) * lam + Q[1]
-            step = ca.fmin(ca.fmax(_safe_div(f, df), -ROOT_TOL * lam), ROOT_TOL * lam)
+            step = ca.fmin(ca.fmax(_safe_div(f, df), -FINAL_CLIP * lam), FINAL_CLIP * lam)
             lam = lam - step
         h1, h2, ok = _secular_slip(lam, K11, K12, K21, K22, T_t, K_norm)
         polish = ca.logic_and(ok, family == 0)

@@ -19,8 +19,8 @@ changes under a perturbation of the inputs by a few ulp) and to evaluate the
 other side of that branch on the same inputs.  Neither changes anything when
 left at None.
 
-The implicit step states the spec's rule (section 3: stick, else the slip
-solution of least |g|, else lift-off) on top of ``implicit_solutions``, an
+The implicit step states the spec's rule (section 3: stick, else the first
+slip solution on the branch from zero slip, else lift-off) on top of ``implicit_solutions``, an
 iteration-free solver (all slip solutions by bracketing the direction angle
 of the slip), independent of the package's quartic.
 
@@ -368,13 +368,37 @@ def _implicit_trial(Pt, n):
     return e1, e2, c1, c2, _snorm2(c1, c2)
 
 
+def _largest_pole(Pt, Dp, n):
+    """The largest lam > 0 at which g(lam) = (K + lam I)^-1 p has a pole (0 if
+    none): lam = -e for a real eigenvalue e < 0 of K whose residue
+    adj(K + lam I) p is not zero (1e-9 relative)."""
+    t1 = _tangential(Pt, n)
+    T = np.linalg.norm(t1)
+    if T == 0.0:
+        return 0.0
+    t1 = t1 / T
+    B = np.stack([t1, _cross(n, t1)], axis=1)
+    K = B.T @ Dp @ B
+    p = np.array([T, 0.0])
+    best = 0.0
+    for e in np.linalg.eigvals(K):
+        r = -e.real
+        if abs(e.imag) > 1e-12 * abs(e) or r <= best:
+            continue
+        v = np.array([[K[1, 1] + r, -K[0, 1]], [-K[1, 0], K[0, 0] + r]]) @ p
+        if np.linalg.norm(v) > 1e-9 * (np.linalg.norm(K) + r) * T:
+            best = r
+    return best
+
+
 def implicit_step(P0, Dp, n, l, mu, u0, path=None, force=None):
     """Spec section 3: the exact backward-Euler Coulomb step, by its rule.
 
     Stick when the trial force is inside the cone (T_t <= mu N_t, N_t > 0);
     else every slip solution with n.P > 0 from ``implicit_solutions`` (a scan
-    of the slip direction, independent of the package's quartic), and the one
-    of least |g|; lift-off when there is none.  In contact P = N n +
+    of the slip direction, independent of the package's quartic) on the
+    branch above the largest pole of g(lam), and the one of largest
+    lam = mu N/|g|; lift-off when there is none.  In contact P = N n +
     mu N g/|g| with N = n.(P0 + Dp (l - g)), on the cone by construction."""
     P0, Dp, n, l, mu, u0 = _prep(P0, Dp, n, l, mu, u0)
     d = _Decisions(path, force)
@@ -383,11 +407,16 @@ def implicit_step(P0, Dp, n, l, mu, u0, path=None, force=None):
     _, _, _, _, Tt = _implicit_trial(Pt, n)
     if d("stick", (Tt <= mu * Nt) and (Nt > 0)):
         return l.copy(), Pt, np.zeros(3), 1.0
-    # a slip ending at N of round-off is lift-off: N > CONE_TOL |P_t|
-    sols = [g for g, N in implicit_solutions(P0, Dp, n, l, mu) if N > CONE_TOL * _snorm(Pt)]
+    # a slip ending at N of round-off is lift-off: N > CONE_TOL |P_t|; only
+    # the branch lam > lam_p counts (lam_p the largest pole of g(lam) with a
+    # non-zero residue); of those the largest lam = mu N/|g|
+    lam_p = _largest_pole(Pt, Dp, n)
+    sols = [(mu * N / np.linalg.norm(g), g) for g, N in implicit_solutions(P0, Dp, n, l, mu)
+            if N > CONE_TOL * _snorm(Pt)]
+    sols = [(lam, g) for lam, g in sols if lam > lam_p or lam_p <= 0]
     if d("no slip solution", not sols):
         return -u0.copy(), np.zeros(3), np.zeros(3), 0.0
-    g = min(sols, key=np.linalg.norm)
+    g = max(sols, key=lambda s: s[0])[1]
     delta = l - g
     N = _dot(n, P0 + Dp @ delta)
     P = N * n + mu * N * g / np.linalg.norm(g)

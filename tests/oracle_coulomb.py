@@ -4,7 +4,7 @@ Test oracle, not part of the package: it imports nothing from ``symcushion``
 except, in :func:`random_cases`, ``symcushion.strut`` to build stiffness
 matrices of real struts. It finds *every* slip solution of the backward-Euler
 Coulomb step by scanning the direction of the slip, and states the step's
-selection rule, so that ``tests/test_contact_exact.py`` can check the
+selection rule (:func:`chosen`), so that ``tests/test_contact_exact.py`` can check the
 package's implicit step against it.
 
 The problem: P(g) = P_t - D_p g with P_t = P0 + D_p l, the slip g
@@ -45,6 +45,9 @@ ACCEPT_TOL = 1e-8
 #: A slip solution must end with N > N_MIN |P_t|: a slip that ends at N of
 #: round-off is a foot sliding off its load, which the step calls lift-off.
 N_MIN = 1e-12
+#: A root of det(K + lam I) is a pole of g(lam) when its residue
+#: |adj(K + lam I) p| exceeds this times (|K| + lam) |p| (round-off: 1e-16).
+POLE_RTOL = 1e-9
 #: Largest number of roots kept per case (H has at most 6).
 MAX_ROOTS = 6
 
@@ -114,9 +117,10 @@ def coulomb_solutions(P0, Dp, n, l, mu):
     -------
     dict
         ``g`` (m, MAX_ROOTS, 3) slip vectors (m; NaN where absent), ``N``
-        (m, MAX_ROOTS) their normal forces (N; NaN where absent), ``count``
-        (m,), ``stick`` (m,) bool: the trial force is inside the cone,
-        ``Pt`` (m, 3).
+        (m, MAX_ROOTS) their normal forces (N; NaN where absent), ``lam``
+        (m, MAX_ROOTS) their mu N/|g|, ``count`` (m,), ``stick`` (m,) bool:
+        the trial force is inside the cone, ``Pt`` (m, 3), ``lam_p`` (m,)
+        the largest active pole of g(lam) (:func:`largest_pole`).
     """
     m = len(mu)
     Pt, B, p, K, a, Nt = _frame(P0, Dp, n, l)
@@ -177,15 +181,41 @@ def coulomb_solutions(P0, Dp, n, l, mu):
         if count[i] < MAX_ROOTS:
             out_g[i, count[i]], out_N[i, count[i]] = g[k], N[k]
             count[i] += 1
-    return dict(g=out_g, N=out_N, count=count, stick=stick, Pt=Pt)
+    lam = mu[:, None] * out_N / np.linalg.norm(out_g, axis=2)
+    return dict(g=out_g, N=out_N, lam=lam, count=count, stick=stick, Pt=Pt,
+                lam_p=largest_pole(K, p))
 
 
-def least_slip(sol):
-    """Index (m,) of the solution of least |g| per case (-1 where none): the rule."""
-    norms = np.linalg.norm(sol["g"], axis=2)
-    norms = np.where(np.isfinite(norms), norms, np.inf)
-    idx = np.argmin(norms, axis=1)
-    return np.where(sol["count"] > 0, idx, -1)
+def largest_pole(K, p):
+    """The largest lam > 0 where g(lam) = (K + lam I)^-1 p has a pole (0 if none), (m,).
+
+    The poles are lam = -e for the real eigenvalues e < 0 of K, each counted
+    only when the residue adj(K + lam I) p is not zero (POLE_RTOL relative).
+    """
+    ev = np.linalg.eigvals(K)
+    out = np.zeros(len(K))
+    for j in range(2):
+        r = -ev[:, j].real
+        real = np.abs(ev[:, j].imag) <= 1e-12 * np.abs(ev[:, j])
+        v1 = (K[:, 1, 1] + r) * p[:, 0] - K[:, 0, 1] * p[:, 1]
+        v2 = (K[:, 0, 0] + r) * p[:, 1] - K[:, 1, 0] * p[:, 0]
+        size = (np.linalg.norm(K, axis=(1, 2)) + r) * np.linalg.norm(p, axis=1)
+        active = real & (r > 0) & (np.hypot(v1, v2) > POLE_RTOL * size)
+        out = np.where(active & (r > out), r, out)
+    return out
+
+
+def chosen(sol):
+    """Index (m,) of the solution the rule takes per case (-1 where none).
+
+    The rule: of the solutions on the branch lam > lam_p (lam = mu N/|g|,
+    lam_p from :func:`largest_pole`), the one of largest lam -- the first met
+    when the slip grows from zero along g(lam), lam coming down from infinity.
+    """
+    lam = sol["lam"]
+    ok = np.isfinite(lam) & ((lam > sol["lam_p"][:, None]) | (sol["lam_p"][:, None] <= 0))
+    idx = np.argmax(np.where(ok, lam, -np.inf), axis=1)
+    return np.where(ok.any(axis=1), idx, -1)
 
 
 # ---------------------------------------------------------------------------

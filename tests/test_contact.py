@@ -354,13 +354,12 @@ def test_implicit_handles_indefinite_and_pole_cases():
 def test_implicit_poles_of_negative_tangential_stiffness():
     """D_p = diag(10, -5, 10): negative stiffness along y, n = z.
 
-    Plane-parallel motion in x-z: the trial force has no y part, and the step
-    slides as with positive stiffness (agreeing with the robust step; the
-    frictionless graph agrees with the full one at mu = 0). With a y part,
-    (K + lam I)^-1 has a pole at lam = 5 between lam = 0 and the solutions;
-    the step still returns the solution of least slip (docs/contact.md,
-    "Selection rule": lift-off only when no solution exists): at mu = 0 the
-    frictionless slide g = K^-1 p to the unstable equilibrium, in both graphs.
+    Plane-parallel motion in x-z: the trial force has no y part, the pole of
+    (K + lam I)^-1 at lam = 5 has zero residue and the step slides as with
+    positive stiffness (agreeing with the robust step; the frictionless graph
+    agrees with the full one at mu = 0). With a y part the pole is active: at
+    mu = 0 the slip would have to pass through infinity, and the step lifts
+    off (spec §3), in both graphs; at mu = 0.3 solutions exist above the pole.
     """
     Dp, l = np.diag([10.0, -5.0, 10.0]), np.array([0.01, 0.0, 0.001])
     plane = np.array([0.3, 0.0, 1.0])
@@ -373,18 +372,137 @@ def test_implicit_poles_of_negative_tangential_stiffness():
     for key, value in zip(OUTPUT_NAMES, small):
         np.testing.assert_array_equal(full[key], value)
     spatial = np.array([0.3, 0.1, 1.0])
-    Pt = spatial + Dp @ l
-    slide = np.array([Pt[0] / 10.0, Pt[1] / -5.0, 0.0])  # g = K^-1 p
-    r = step("implicit", spatial, Dp, Z, l, 0.0)
-    assert r["contact"][0] == 1
-    np.testing.assert_allclose(r["k"], slide, rtol=1e-14)
-    small = contact_step("implicit", friction=False)(spatial, Dp, Z, l, 0.0, np.zeros(3))
-    np.testing.assert_allclose(np.asarray(small[2]).ravel(), slide, rtol=1e-14)
+    assert step("implicit", spatial, Dp, Z, l, 0.0)["contact"][0] == 0
+    assert contact_step("implicit", friction=False)(spatial, Dp, Z, l, 0.0, np.zeros(3))[3] == 0
+    # mu = 0.3: solutions at lam = 3.69 (below the pole), 8.56 and 21.67 (on
+    # the branch, tests/oracle_coulomb.py); the first spec lifted off here
+    # (F > 0 at the pole, two roots above it), the rule takes lam = 21.67.
     r = step("implicit", spatial, Dp, Z, l, 0.3)
     assert r["contact"][0] == 1
-    g = r["k"]
+    np.testing.assert_allclose(r["k"], [0.01263019, 0.00599875, 0.0], rtol=1e-6, atol=1e-12)
     N = Z @ r["P"]
-    np.testing.assert_allclose(tangential(r["P"], Z), 0.3 * N * g / np.linalg.norm(g), rtol=0, atol=1e-12)
+    assert 0.3 * N / np.linalg.norm(r["k"]) == pytest.approx(21.67013708, rel=1e-8)
+
+
+# ---------------------------------------------------------------------------
+# NOTES §3 items 1-5: fail with the printed step, pass with the robust one
+# ---------------------------------------------------------------------------
+@pytest.mark.parametrize("method", ["paper", "robust"])
+@printed_step_fails
+def test_item1_receding_plane_separates(method):
+    """No separation branch: the printed step returns a tensile force."""
+    Dp, mu = 10 * np.eye(3), 0.3
+    P0 = np.array([0.1, 0.0, 1.0])
+    u0 = P0 / 10
+    r = step(method, P0, Dp, Z, [0.02, 0.0, -0.2], mu, u0)
+    assert Z @ r["P"] >= 0
+    if r["contact"][0] == 0:
+        np.testing.assert_array_equal(r["P"], np.zeros(3))
+
+
+@pytest.mark.parametrize("method", ["paper", "robust"])
+@printed_step_fails
+def test_item2_k2_uses_k1(method):
+    """P0 on the cone with C0 = +round-off: k1 fires, and k2 must not count it twice.
+
+    Plane-parallel, symmetric positive-definite D_p with the n-l plane
+    invariant: the exact answer is the implicit one.
+    """
+    Dp = np.array([[10.0, 0, 2], [0, 7, 0], [2, 0, 20]])
+    mu, l = 0.3, np.array([0.01, 0, 0.001])
+    P0 = np.array([0.3 * (1 + 1e-14), 0, 1.0])  # C0 = +1.6e-15 |P0|^2
+    u0 = np.linalg.solve(Dp, P0)
+    exact = step("implicit", P0, Dp, Z, l, mu, u0)["P"]
+    r = step(method, P0, Dp, Z, l, mu, u0)
+    assert r["k"][0] > 0  # the initial slip fired
+    np.testing.assert_allclose(r["P"], exact, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("method", ["paper", "robust"])
+@printed_step_fails
+def test_item3_mu_zero_keeps_force_on_the_ray(method):
+    """mu = 0: formula (1.15) loses half the digits (double root)."""
+    rng = np.random.default_rng(0)
+    cases = []
+    for _ in range(300):
+        n = rng.normal(size=3)
+        n /= np.linalg.norm(n)
+        Q = rotation(rng)
+        Dp = Q @ np.diag(10 ** rng.uniform(0, 3, 3)) @ Q.T
+        P0 = abs(rng.normal()) * n
+        cases.append((P0, Dp, n, rng.normal(size=3) * 0.01, 0.0, np.linalg.solve(Dp, P0)))
+    r = batch(method, cases)
+    for i, (_, _, n, _, _, _) in enumerate(cases):
+        if r["contact"][0, i] == 1:
+            P = r["P"][:, i]
+            assert np.linalg.norm(tangential(P, n)) <= RAY_RTOL * np.linalg.norm(P)
+
+
+@pytest.mark.parametrize("method", ["paper", "robust"])
+@printed_step_fails
+def test_item3_stiff_leg_cone_residual(method):
+    """A3 -> 0 with stiff axial and soft bending (ratio 1e6-1e8, NOTES §3.7)."""
+    rng = np.random.default_rng(1)
+    cases = []
+    for _ in range(300):
+        e = rng.normal(size=3)
+        e *= np.sign(e[2]) / np.linalg.norm(e)
+        kb = 10 ** rng.uniform(1, 3)
+        Dp = kb * 10 ** rng.uniform(6, 8) * np.outer(e, e) + kb * (np.eye(3) - np.outer(e, e))
+        mu = rng.uniform(0.05, 1)
+        N0 = abs(rng.normal()) * 100
+        t = rng.normal(size=2)
+        t /= np.linalg.norm(t)
+        P0 = np.array([mu * N0 * t[0] * rng.uniform(), mu * N0 * t[1], N0])
+        cases.append((P0, Dp, Z, rng.normal(size=3) * 1e-3, mu, np.linalg.solve(Dp, P0)))
+    r = batch(method, cases)
+    for i, (_, _, n, _, mu, _) in enumerate(cases):
+        if r["contact"][0, i] == 1:
+            P = r["P"][:, i]
+            assert cone(P, n, mu) <= CONE_RTOL * (P @ P)
+
+
+def _rotated_stiffness(theta):
+    c, s = np.cos(theta), np.sin(theta)
+    R = np.array([[c, 0, -s], [0, 1, 0], [s, 0, c]])
+    return R @ np.diag([1.0, 50.0, 100.0]) @ R.T
+
+
+@pytest.mark.parametrize("method", ["paper", "robust"])
+@printed_step_fails
+def test_item4_clamp_is_only_a_safeguard(method):
+    """(1.10) with u0 = Dp^-1 P0 and anisotropic D_p (plane-parallel).
+
+    theta = pi/2: the clamp bites (0 < ub < k1): the chain must still reach
+    the exact answer. theta = 2pi/3: the interval is empty (ub < 0): k1 is
+    the value of (1.9), not 0, and the answer is still exact.
+    """
+    mu, l = 0.3, np.array([0.01, 0, 0])
+    P0 = np.array([0.3 * (1 + 1e-14), 0, 1.0])
+    for theta in (np.pi / 2, 2 * np.pi / 3):
+        Dp = _rotated_stiffness(theta)
+        u0 = np.linalg.solve(Dp, P0)
+        s = P0 - P0[2] * Z
+        ub = s @ u0 / (s @ s)
+        exact = step("implicit", P0, Dp, Z, l, mu, u0)
+        r = step(method, P0, Dp, Z, l, mu, u0)
+        np.testing.assert_allclose(r["P"], exact["P"], rtol=0, atol=1e-12)
+        if ub < 0:
+            assert r["k"][0] > 0
+
+
+@pytest.mark.parametrize("method", ["paper", "robust"])
+@printed_step_fails
+def test_item5_k2_continuous_at_c2_zero(method):
+    """P_t on the cone up to round-off: the answer must not jump with the sign of C2."""
+    Dp, mu = 10 * np.eye(3), 0.5
+    P_t = np.array([0.18, 0.24, 0.6])  # |P_t tau| = mu N_t
+    l0 = np.array([-0.01, 0.0, -0.04])  # -Dp l_tau points out of the cone
+    P0 = P_t - Dp @ l0
+    for eps in (-1e-14, 0.0, 1e-14):  # C(P_t) = -+6.7e-14 |P_t|^2, 0
+        l = l0 + np.array([0, 0, -eps])
+        r = step(method, P0, Dp, Z, l, mu, P0 / 10)
+        np.testing.assert_allclose(r["P"], P0 + Dp @ l, rtol=0, atol=1e-12)
 
 
 # ---------------------------------------------------------------------------
