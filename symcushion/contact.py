@@ -55,6 +55,7 @@ __all__ = [
     "TINY",
     "UNIT_TOL",
     "contact_step",
+    "contact_step_call",
     "contact_step_expr",
     "solve_contact",
     "stack_inputs",
@@ -394,7 +395,6 @@ def _coulomb_check(lam, g1, g2, ok, a1, a2, N_t, mu, N_min):
     N = N_t - a.g exceeds N_min (compressive beyond round-off) and the
     secular equation lam |g| = mu N holds to ROOT_TOL (the squared quartic
     also has the roots of lam |g| = -mu N, removed here by N > 0).
-    Returns (valid, |g|^2).
     """
     gg = g1 * g1 + g2 * g2
     N = N_t - (a1 * g1 + a2 * g2)
@@ -409,7 +409,7 @@ def _coulomb_check(lam, g1, g2, ok, a1, a2, N_t, mu, N_min):
         ca.logic_and(ok, N > N_min),
         ca.fabs(lhs - rhs) <= ROOT_TOL * (lhs + rhs) + CANCEL_TOL * mu * mu * N_scale * N_scale,
     )
-    return valid, gg
+    return valid
 
 
 def _secular_slip(lam, K11, K12, K21, K22, T, K_norm):
@@ -477,6 +477,69 @@ def _family_slips(K11, K12, K21, K22, a1, a2, T, N_t, mu, K_norm):
     return out
 
 
+def _quartic(K11, K12, K21, K22, a1, a2, T, N_t, mu, K_norm):
+    """Coefficients [Q0..Q4] of the implicit step's quartic in lam, and its root scale c.
+
+    Q(lam) = lam^2 |adj(K + lam I) p|^2 - mu^2 R(lam)^2 with p = (T, 0):
+    |adj p|^2 = T^2 ((lam + K22)^2 + K21^2) and
+    R(lam) = N_t det(K + lam I) - a.adj(K + lam I) p = r2 lam^2 + r1 lam + r0.
+    The closed form is most accurate with the roots spread evenly around
+    c: c = |Q0/Q4|^(1/4), their geometric mean, kept within
+    ROOT_SCALE_RANGE of the stiffness scale |K|_F + mu |a| (Q4 or Q0 can
+    vanish).
+    """
+    T2, mu2 = T * T, mu * mu
+    r2 = N_t
+    r1 = N_t * (K11 + K22) - T * a1
+    r0 = N_t * (K11 * K22 - K12 * K21) - T * (a1 * K22 - a2 * K21)
+    Q = [-mu2 * r0 * r0,
+         -2 * mu2 * r1 * r0,
+         T2 * (K22 * K22 + K21 * K21) - mu2 * (r1 * r1 + 2 * r2 * r0),
+         2 * T2 * K22 - 2 * mu2 * r2 * r1,
+         T2 - mu2 * r2 * r2]
+    stiff = K_norm + mu * _safe_sqrt(a1 * a1 + a2 * a2)
+    stiff = ca.if_else(stiff > TINY, stiff, 1.0)
+    mean = _safe_sqrt(_safe_sqrt(_safe_div(ca.fabs(Q[0]), ca.fabs(Q[4]))))
+    return Q, ca.fmin(ca.fmax(mean, stiff / ROOT_SCALE_RANGE), stiff * ROOT_SCALE_RANGE)
+
+
+def _polish_root(Q, lam):
+    """FINAL_STEPS Newton steps on Q at the chosen root, each clipped to FINAL_CLIP lam.
+
+    The candidates are accepted at ROOT_TOL; this brings lam to round-off
+    (Coulomb-exact), and its derivative is then the implicit-function one.
+    The clip keeps a flat Q (a double root) from moving lam far.
+    """
+    for _ in range(FINAL_STEPS):
+        f = (((Q[4] * lam + Q[3]) * lam + Q[2]) * lam + Q[1]) * lam + Q[0]
+        df = ((4 * Q[4] * lam + 3 * Q[3]) * lam + 2 * Q[2]) * lam + Q[1]
+        lam = lam - ca.fmin(ca.fmax(_safe_div(f, df), -FINAL_CLIP * lam), FINAL_CLIP * lam)
+    return lam
+
+
+def _select(candidates, n_secular, lam_p, a1, a2, N_t, mu, N_min):
+    """The rule: of the valid candidates on the branch, the one of largest lam.
+
+    The branch is lam > lam_p (lam_p the largest pole of g(lam), 0 if none):
+    below it the foot would slide through infinity (snap-through). The largest
+    lam is the first solution met as the slip grows from zero along g(lam).
+    A slip ending at N <= N_min (round-off: the foot slides off its load) is
+    not contact. Candidates from index `n_secular` on are family slips.
+    Returns (found, lam, g1, g2, family).
+    """
+    found = ca.SX(0)
+    lam_best = g1 = g2 = family = ca.SX(0.0)
+    for i, (lam, h1, h2, ok) in enumerate(candidates):
+        on_branch = ca.logic_or(lam > lam_p, lam_p <= 0)
+        valid = _coulomb_check(lam, h1, h2, ca.logic_and(ok, on_branch), a1, a2, N_t, mu, N_min)
+        better = ca.logic_and(valid, ca.logic_or(ca.logic_not(found), lam > lam_best))
+        lam_best = ca.if_else(better, lam, lam_best)
+        g1, g2 = ca.if_else(better, h1, g1), ca.if_else(better, h2, g2)
+        family = ca.if_else(better, 1.0 if i >= n_secular else 0.0, family)
+        found = ca.logic_or(found, valid)
+    return found, lam_best, g1, g2, family
+
+
 def _implicit(P0, Dp, n, l, mu, u0, friction):
     r"""Find the tangential slip g with P = P0 + Dp (l - g) on the cone.
 
@@ -522,25 +585,7 @@ def _implicit(P0, Dp, n, l, mu, u0, friction):
     lams = [ca.SX(0.0)]  # the frictionless slide g = K^-1 p
     if friction:
         lams = []
-        T2 = T_t * T_t
-        # R(lam) = N_t det(K + lam I) - a.adj(K + lam I) p = r2 lam^2 + r1 lam + r0
-        r2 = N_t
-        r1 = N_t * (K11 + K22) - T_t * a1
-        r0 = N_t * (K11 * K22 - K12 * K21) - T_t * (a1 * K22 - a2 * K21)
-        mu2 = mu * mu
-        # lam^2 |adj p|^2 = T^2 lam^2 ((lam + K22)^2 + K21^2), minus mu^2 R^2
-        Q = [-mu2 * r0 * r0,
-             -2 * mu2 * r1 * r0,
-             T2 * (K22 * K22 + K21 * K21) - mu2 * (r1 * r1 + 2 * r2 * r0),
-             2 * T2 * K22 - 2 * mu2 * r2 * r1,
-             T2 - mu2 * r2 * r2]
-        # The closed form is most accurate with the roots spread evenly
-        # around c: c = |Q0/Q4|^(1/4), their geometric mean, kept within
-        # ROOT_SCALE_RANGE of the stiffness scale (Q4 or Q0 can vanish).
-        stiff = K_norm + mu * _safe_sqrt(a1 * a1 + a2 * a2)
-        stiff = ca.if_else(stiff > TINY, stiff, 1.0)
-        mean = _safe_sqrt(_safe_sqrt(_safe_div(ca.fabs(Q[0]), ca.fabs(Q[4]))))
-        c = ca.fmin(ca.fmax(mean, stiff / ROOT_SCALE_RANGE), stiff * ROOT_SCALE_RANGE)
+        Q, c = _quartic(K11, K12, K21, K22, a1, a2, T_t, N_t, mu, K_norm)
         lams += quartic_roots(Q, c)
         # lam = 0 (the frictionless slide) solves lam |g| = mu N only when
         # mu N = 0: at mu = 0 it replaces the first root (the quartic is then
@@ -550,37 +595,13 @@ def _implicit(P0, Dp, n, l, mu, u0, friction):
     if friction:
         candidates += _family_slips(K11, K12, K21, K22, a1, a2, T_t, N_t, mu, K_norm)
 
-    # 3. Selection: the valid candidate of least slip |g| (docs/contact.md,
-    #    "Selection rule"); family candidates keep their own g.
-    found = ca.SX(0)
-    lam_best = g1 = g2 = best = family = ca.SX(0.0)
-    # A slip ending at N of round-off (P ~ 0: the foot slides off its load)
-    # is lift-off, not contact: N must exceed CONE_TOL |P_t|. A solution
-    # counts only on the branch lam > lam_p connected to small slip (lam ->
-    # inf): below the largest pole lam_p of g(lam) the foot would slide
-    # through infinity to get there (snap-through), docs/contact.md.
-    N_min = CONE_TOL * _safe_sqrt(N_t * N_t + T_t * T_t)
-    lam_p = _largest_pole(K11, K12, K21, K22, K_norm)
-    for i, (lam, h1, h2, ok) in enumerate(candidates):
-        on_branch = ca.logic_or(lam > lam_p, lam_p <= 0)
-        valid, h_norm = _coulomb_check(lam, h1, h2, ca.logic_and(ok, on_branch), a1, a2, N_t, mu, N_min)
-        better = ca.logic_and(valid, ca.logic_or(ca.logic_not(found), lam > lam_best))
-        lam_best = ca.if_else(better, lam, lam_best)
-        g1, g2 = ca.if_else(better, h1, g1), ca.if_else(better, h2, g2)
-        best = ca.if_else(better, h_norm, best)
-        family = ca.if_else(better, 1.0 if i >= len(lams) else 0.0, family)
-        found = ca.logic_or(found, valid)
+    # 3. Selection (docs/contact.md, "Selection rule"), then the polish of
+    #    the chosen root; family candidates keep their own g.
+    found, lam_best, g1, g2, family = _select(
+        candidates, len(lams), _largest_pole(K11, K12, K21, K22, K_norm),
+        a1, a2, N_t, mu, CONE_TOL * _safe_sqrt(N_t * N_t + T_t * T_t))
     if friction:
-        # Polish the chosen root on Q itself: the candidates are accepted at
-        # ROOT_TOL, this brings lam to round-off (Coulomb-exact), and its
-        # derivative is then the implicit-function one. Each step is clipped
-        # to FINAL_CLIP lam so that a flat Q (double root) cannot move it far.
-        lam = lam_best
-        for _ in range(FINAL_STEPS):
-            f = (((Q[4] * lam + Q[3]) * lam + Q[2]) * lam + Q[1]) * lam + Q[0]
-            df = ((4 * Q[4] * lam + 3 * Q[3]) * lam + 2 * Q[2]) * lam + Q[1]
-            step = ca.fmin(ca.fmax(_safe_div(f, df), -FINAL_CLIP * lam), FINAL_CLIP * lam)
-            lam = lam - step
+        lam = _polish_root(Q, lam_best)
         h1, h2, ok = _secular_slip(lam, K11, K12, K21, K22, T_t, K_norm)
         polish = ca.logic_and(ok, family == 0)
         g1, g2 = ca.if_else(polish, h1, g1), ca.if_else(polish, h2, g2)
@@ -716,6 +737,36 @@ def _build(method, friction):
         INPUT_NAMES,
         OUTPUT_NAMES,
     )
+
+
+@functools.lru_cache(maxsize=None)
+def _build_call(method, friction):
+    f = _build(method, friction)
+    sym = f.sx_in()
+    # never_inline: an SX graph calling this keeps one call node per call, so
+    # that a simulator calls one compiled copy instead of inlining eight
+    return ca.Function(f"{f.name()}_call", sym, f.call(sym), INPUT_NAMES, OUTPUT_NAMES,
+                       {"never_inline": True})
+
+
+def contact_step_call(method, P0, Dp, n, l, mu, u0, *, friction=None):
+    """The step of :func:`contact_step_expr` as a call node of one shared Function.
+
+    Same arguments and returned dict as :func:`contact_step_expr`, but the
+    SX graph holds a call of the ``never_inline`` Function
+    ``contact_step_<method>[_frictionless]_call`` instead of the step's
+    instructions: a graph with several legs and passes contains (and its
+    generated C compiles) the step once. Derivatives through the call are
+    CasADi's derivative Functions of the call node.
+    """
+    _check_method(method)
+    if friction is None:
+        friction = not _is_literal_zero(mu)
+    args = [_as_sx(x, name, shape) for x, name, shape in
+            ((P0, "P0", (3, 1)), (Dp, "Dp", (3, 3)), (n, "n", (3, 1)), (l, "l", (3, 1)),
+             (mu, "mu", (1, 1)), (u0, "u0", (3, 1)))]
+    out = _build_call(method, bool(friction))(*args)
+    return dict(zip(OUTPUT_NAMES, out))
 
 
 def contact_step(method, friction=True):
