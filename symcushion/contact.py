@@ -349,15 +349,19 @@ def _robust(P0, Dp, n, l, mu, u0, friction):
     delta = delta3 + k3 * e
     P = _cone_clean(P0 + ca.mtimes(Dp, delta), n, mu)
 
-    # 6. Separation (item 1): tension, or no admissible k3, or friction
-    #    along the accumulated slip g = l - delta (P_tau.g < 0): the chain
-    #    then landed on the cone in no Coulomb state, and the exact step has
-    #    no compressive solution either (docs/contact.md, "Robust step").
-    #    The tolerance keeps a P_tau of round-off (mu = 0, P on the ray) from
-    #    deciding.
+    # 6. Separation (item 1): tension, or no admissible k3, or, with a
+    #    tensile trial force, friction along the accumulated slip
+    #    g = l - delta (P_tau.g < 0): the chain then landed on the cone in no
+    #    Coulomb state, and in plane-parallel motion the exact step has no
+    #    compressive solution either. With a compressive trial force the
+    #    exact step mostly has one in 3-D, and lifting off there is worse
+    #    than the anti-Coulomb answer (docs/contact.md, "robust"). The
+    #    tolerance keeps a P_tau of round-off (mu = 0) from deciding.
     P_N = ca.dot(n, P)
     slip = l - delta
-    anti_coulomb = ca.dot(P - P_N * n, slip) < -CONE_TOL * _safe_norm(P) * _safe_norm(slip)
+    anti_coulomb = ca.logic_and(
+        ca.dot(P - P_N * n, slip) < -CONE_TOL * _safe_norm(P) * _safe_norm(slip),
+        ca.dot(n, P_t) <= 0)
     lift = ca.logic_or(ca.logic_or(P_N <= 0, no_root), anti_coulomb)
     k = ca.vertcat(k1, k2, k3)
     slip = _lift_off(lift, u0, dict(delta=delta, P=P, k=k, contact=ca.SX(1.0)))

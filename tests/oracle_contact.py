@@ -326,11 +326,13 @@ def robust_step(P0, Dp, n, l, mu, u0, path=None, force=None):
     k = np.array([k1, k2, k3])
 
     # 6. separation: n.P <= 0 (the P of step 5, after the clean-up), no k3
-    # candidate counted when one was needed, or friction along the
-    # accumulated slip l - delta (P_tau . (l - delta) < 0: no Coulomb state)
+    # candidate counted when one was needed, or, with a tensile trial force
+    # n.P_t <= 0, friction along the accumulated slip l - delta
+    # (P_tau . (l - delta) < 0: no Coulomb state)
     PN = _dot(n, P)
     # (with a tolerance: at mu = 0 P_tau is round-off and must not decide)
-    anti = _dot(P - PN * n, l - delta) < -CONE_TOL * _snorm(P) * _snorm(l - delta)
+    anti = (_dot(P - PN * n, l - delta) < -CONE_TOL * _snorm(P) * _snorm(l - delta)
+            and _dot(n, Pt) <= 0)
     if d("lift", (PN <= 0) or no_root or anti):
         return -u0.copy(), np.zeros(3), k, 0.0
     return delta, P, k, 1.0
