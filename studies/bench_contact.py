@@ -5,8 +5,8 @@ step with docs/paper-notes.md §3 items 1-5 fixed (``contact_step_robust``) and 
 backward-Euler Coulomb step (``contact_step_implicit``) all map
 (P0, D_p, n, l, mu, u0) to the force P at the end of a step. How far is each
 from the implicit one, in plane-parallel motion (the case the paper derives)
-and in 3-D; how large is each graph and how fast does it evaluate; and how
-many of the implicit step's NEWTON_ITERS Newton iterations are needed?
+and in 3-D; how large is each graph and how fast does it evaluate, from
+Python and compiled?
 
 Method:
 
@@ -25,13 +25,9 @@ Method:
 - Cost: ``n_instructions``, ``n_nodes``; evaluations per second for a single
   call from Python and for one call of ``f.map(BATCH)`` (serial), best of
   BEST_OF repeats.
-- Newton iterations: the implicit Function rebuilt with NEWTON_ITERS = 0..20
-  (the module constant patched while building), on four families of random
-  3-D cases with mu in [0.05, 2]: the first count from which the slip g stays
-  within 1e-8 of its value after 20 iterations, and the Coulomb residual
-  |P_tau - mu N g/|g|| / |P_t| of the output after 20. The output residual
-  has a round-off floor of about eps cond(D_p): P = P0 + D_p (l - g) is
-  rebuilt in 3-D from the slip.
+- Compiled cost: the steps generated into one C library at -O3 and timed
+  in one C harness (``symcushion/c/bench_contact.c``) on the same cases:
+  ns per evaluation and the implicit/robust ratio.
 
 Output: Markdown tables on stdout, also written to ``docs/contact.md`` under
 "Benchmark". Run: ``python studies/bench_contact.py``.
@@ -39,16 +35,16 @@ Output: Markdown tables on stdout, also written to ``docs/contact.md`` under
 from __future__ import annotations
 
 import platform
+import subprocess
+import tempfile
 import time
 from pathlib import Path
 
 import casadi as ca
 import numpy as np
 
-import symcushion.contact as contact
-from symcushion.contact import (INPUT_NAMES, METHODS, OUTPUT_NAMES, contact_step, contact_step_expr,
-                                stack_inputs)
-from symcushion import report
+from symcushion import codegen, report
+from symcushion.contact import METHODS, OUTPUT_NAMES, contact_step, stack_inputs
 
 #: Random cases per family.
 CASES = 20000
@@ -58,14 +54,9 @@ BATCH = 10000
 BEST_OF = 5
 #: Wall time aimed at per timing repeat (s).
 REPEAT_SECONDS = 0.2
-#: Converged: Coulomb residual below this, relative to |P_t|.
-RESIDUAL_RTOL = 1e-13
-#: Converged: slip within this of its value after NEWTON_ITERS iterations,
-#: relative. Not tighter: once F(lam) is round-off the iterate dithers between
-#: neighbouring lam, which moves g by up to ~eps cond(D_p) (1e-9 at cond 1e8).
-SLIP_RTOL = 1e-8
-#: Cases per family in the Newton-iteration count.
-ITER_CASES = 4000
+#: Cases of the compiled C timing, and passes over them per run.
+NATIVE_CASES = 2000
+C_REPEAT = 20
 
 DOC = Path(__file__).resolve().parent.parent / "docs" / "contact.md"
 SECTION = "Benchmark"
@@ -214,48 +205,32 @@ def stack_matrices(cases):
     return np.stack([c[1] for c in cases], axis=2)
 
 
-def newton_iterations(rng):
-    """First iteration count after which the implicit residual stays converged."""
-    syms = [ca.SX.sym(name, *shape) for name, shape in
-            zip(INPUT_NAMES, [(3, 1), (3, 3), (3, 1), (3, 1), (1, 1), (3, 1)])]
-    saved = contact.NEWTON_ITERS
-    functions = []
-    try:
-        for iters in range(saved + 1):
-            contact.NEWTON_ITERS = iters
-            out = contact_step_expr("implicit", *syms)
-            functions.append(ca.Function(f"implicit_{iters}", syms, [out[k] for k in OUTPUT_NAMES],
-                                         INPUT_NAMES, OUTPUT_NAMES))
-    finally:
-        contact.NEWTON_ITERS = saved
-    families = {
-        "SPD, cond ≤ 1e4": dict(max_log_cond=4.0, kind="spd"),
-        "SPD, cond 1e8": dict(max_log_cond=8.0, kind="spd"),
-        "SPD + skew, cond ≤ 1e4": dict(max_log_cond=4.0, kind="skew"),
-        "indefinite, cond ≤ 1e4": dict(max_log_cond=4.0, kind="indefinite"),
-    }
-    rows = []
-    for name, options in families.items():
-        cases = spatial_cases(rng, ITER_CASES, **options)
-        P0, Dp, n, l, mu, _ = stack(cases)
-        P_t = P0 + np.einsum("ijk,jk->ik", stack_matrices(cases), l)
-        slips = np.array([evaluate(f, cases)["k"] for f in functions])  # (iters + 1, 3, cases)
-        final = evaluate(functions[-1], cases)
-        P, g = final["P"], final["k"]
-        N = np.sum(P * n, 0)
-        g_norm = np.linalg.norm(g, axis=0)
-        slipping = (final["contact"][0] == 1) & (g_norm > 0)
-        R = P - N * n - mu[0] * N * g / np.where(g_norm > 0, g_norm, 1)
-        residual = np.linalg.norm(R, axis=0)[slipping] / np.linalg.norm(P_t, axis=0)[slipping]
-        converged = np.linalg.norm(slips - g, axis=1) <= SLIP_RTOL * g_norm
-        # first count from which every later count is converged
-        stays = np.flip(np.cumprod(np.flip(converged, 0), 0), 0).astype(bool)
-        needed = np.argmax(stays, 0)[slipping]
-        rows.append(dict(family=name, slipping=int(slipping.sum()), count=len(cases),
-                         p50=np.percentile(needed, 50), p99=np.percentile(needed, 99),
-                         max=needed.max(), above=int((residual > RESIDUAL_RTOL).sum()),
-                         median_residual=np.median(residual), worst=residual.max()))
-    return rows
+def native_ratio(cases):
+    """ns per evaluation of the robust and implicit steps in one C harness (-O3), same cases.
+
+    The three steps are generated into one library by ``symcushion.codegen``
+    (``CFLAGS``: -O3) and timed by ``symcushion/c/bench_contact.c`` (a loop
+    over the cases calling each generated function, clock_gettime), in one
+    process run per repeat, best of BEST_OF runs.
+    """
+    P0, Dp, n, l, mu, u0 = stack(cases)
+    count = P0.shape[1]
+    Dp = stack_matrices(cases)  # (3, 3, N)
+    table = np.column_stack([P0.T, Dp.transpose(2, 1, 0).reshape(count, 9), n.T, l.T,
+                             mu.T, u0.T])
+    best = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp)
+        codegen.generate(out, build=True)
+        np.ascontiguousarray(table, dtype=np.float64).tofile(out / "cases.bin")
+        program = codegen.build_program(out, Path(codegen.__file__).parent / "c" / "bench_contact.c")
+        for _ in range(BEST_OF):
+            run = subprocess.run([str(program), str(out / "cases.bin"), str(C_REPEAT),
+                                  str(out / "out.bin")], capture_output=True, text=True, check=True)
+            for line in run.stdout.splitlines():
+                name, value = line.split()
+                best[name] = min(best.get(name, np.inf), float(value.split("=")[1]))
+    return best
 
 
 def evals_per_second(call, evals_per_call):
@@ -318,15 +293,11 @@ def cost_table(rows):
     return "\n".join(lines)
 
 
-def iteration_table(rows):
-    lines = ["| family | slipping cases | iterations needed: median | p99 | max "
-             f"| residual: median | worst | cases > {RESIDUAL_RTOL:g} |",
-             "|---|---:|---:|---:|---:|---:|---:|---:|"]
-    for row in rows:
-        lines.append(f"| {row['family']} | {row['slipping']} / {row['count']} | {row['p50']:.0f} "
-                     f"| {row['p99']:.0f} | {row['max']:.0f} | {row['median_residual']:.1e} "
-                     f"| {row['worst']:.1e} | {row['above']} |")
-    return "\n".join(lines)
+def native_table(ns):
+    rows = ["| Function (C, -O3) | ns per evaluation |", "|---|---:|"]
+    rows += [f"| `{name}` | {value:.0f} |" for name, value in ns.items()]
+    ratio = ns["contact_step_implicit"] / ns["contact_step_robust"]
+    return "\n".join(rows) + f"\n\nimplicit / robust per evaluation: **{ratio:.2f}** (target ≤ 1.5)."
 
 
 def breakdown_text(b):
@@ -355,7 +326,7 @@ def main() -> None:
     table_a = agreement_table(agreement(plane), agreement(spatial))
     breakdown = breakdown_text(robust_breakdown(plane))
     table_b = cost_table(cost(spatial))
-    table_c = iteration_table(newton_iterations(rng))
+    ns = native_ratio(spatial[:NATIVE_CASES])
     environment = (f"CasADi {ca.__version__} on {platform.machine()} "
                    f"({platform.python_implementation()} {platform.python_version()}), "
                    f"serial map, best of {BEST_OF} repeats.")
@@ -366,12 +337,11 @@ def main() -> None:
         "(P0 on or inside the cone).",
         "### Agreement with the implicit step", table_a, breakdown,
         "### Size and speed", table_b, environment,
-        "### Newton iterations of the implicit step",
-        f"Over the cases that end slipping in contact (μ ∈ [0.05, 2]): the first "
-        f"iteration count from which the slip g stays within {SLIP_RTOL:g} (relative) of "
-        f"its value after {contact.NEWTON_ITERS} iterations, and the Coulomb residual "
-        f"|P_τ − μN g/|g|| / |P_t| of the output after {contact.NEWTON_ITERS}.",
-        table_c,
+        "### Compiled, one C harness",
+        f"The three steps compiled at -O3 into one library and timed in one C loop over "
+        f"the same {NATIVE_CASES} random 3-D cases, best of {BEST_OF} runs "
+        f"({C_REPEAT} passes each; a loaded 2-core machine: ratios from one run).",
+        native_table(ns),
     ])
     print(body)
     write_section(DOC, SECTION, body)

@@ -10,12 +10,12 @@ This module owns three such steps, built as branch-free CasADi SX graphs with
 identical signatures, and specified exactly in ``docs/contact-spec.md``:
 
 ``contact_step_paper``
-    (1.8)-(1.15) as printed, with the OCR readings of NOTES §1.
+    (1.8)-(1.15) as printed, with the OCR readings of docs/paper-notes.md §1.
 ``contact_step_robust``
-    the same method with the weak points of NOTES §3 items 1-5 fixed.
+    the same method with the weak points of docs/paper-notes.md §3 items 1-5 fixed.
 ``contact_step_implicit``
     the exact backward-Euler Coulomb step (return mapping) for the same
-    linearised force law, valid in 3-D (NOTES §3 item 6).
+    linearised force law, valid in 3-D (docs/paper-notes.md §3 item 6).
 
 It knows nothing about struts, bodies or time integration: the stiffness
 matrix comes from the caller, and the simulator either calls a Function from
@@ -30,7 +30,7 @@ References
 ----------
 V. F. Khvostov, "On the dynamic interaction of shock-absorbing supports with a
 rigid obstacle", Izv. AN SSSR, Mekhanika Tverdogo Tela, 1976, §1,
-equations (1.3)-(1.15); the project's reading in ``shared/paper/NOTES.md``.
+equations (1.3)-(1.15); the project's reading in ``docs/paper-notes.md``.
 """
 from __future__ import annotations
 
@@ -41,18 +41,21 @@ import numbers
 import casadi as ca
 import numpy as np
 
+from .contact_quartic import quartic_roots
+
 __all__ = [
-    "BISECT_FRACTION",
     "CONE_TOL",
+    "DET_TOL",
     "ContactResult",
     "INPUT_NAMES",
     "METHODS",
-    "NEWTON_ITERS",
     "OUTPUT_NAMES",
     "POLE_TOL",
+    "ROOT_TOL",
     "TINY",
     "UNIT_TOL",
     "contact_step",
+    "contact_step_call",
     "contact_step_expr",
     "solve_contact",
     "stack_inputs",
@@ -61,26 +64,46 @@ __all__ = [
 # Relative tolerance of the cone tests C(P) <= CONE_TOL*|P|^2 in the robust
 # step: a force left on the cone by the previous step has C = +-round-off
 # (a few 1e-16 |P|^2); 1e-12 sits well above that and far below any physical
-# penetration of the cone (NOTES §3 items 2 and 5).
+# penetration of the cone (docs/paper-notes.md §3 items 2 and 5).
 CONE_TOL = 1e-12
 # A denominator with |d| <= TINY is treated as zero. 1e-300 is above the
 # smallest normal double (2.2e-308), so 1/d cannot overflow.
 TINY = 1e-300
-# Fixed number of safeguarded Newton iterations of the implicit step. In
-# 16 000 random 3-D cases (cond(D_p) up to 1e8; symmetric, skew-perturbed and
-# indefinite D_p; mu in [0.05, 2]) the slip settled after a median of 3 and
-# at most 14 iterations (studies/bench_contact.py); 20 leaves a margin and
-# costs ~180 SX instructions per iteration.
-NEWTON_ITERS = 20
-# Bisection from lo = 0 replaces hi by BISECT_FRACTION*hi: the bound hi can
-# lie decades above the root when D_p is ill-conditioned, and plain halving
-# would take ~3 iterations per decade instead of a third of one.
-BISECT_FRACTION = 1e-3
+# A candidate lam of the implicit step is a root of det(K + lam I) -- g(lam)
+# unbounded, or not unique when adj(K + lam I) p = 0 too -- when
+# |det(K + lam I)| <= DET_TOL (|K|_F + lam)^2: round-off leaves det at
+# ~1e-16 of that scale at a true root, and 1e-12 sits well above it.
+DET_TOL = 1e-12
+# A polished candidate solves lam |g| = mu N when the two sides agree to
+# ROOT_TOL relative. Simple roots are polished to ~1e-15; a double root (the
+# secular function touching zero) only to ~1e-8, so 1e-6 keeps those, and
+# rejects the squared equation's roots of lam |g| = -mu N (relative residual
+# 2) and the real parts of complex pairs more than ~1e-3 off the real axis.
+ROOT_TOL = 1e-6
+# Newton steps of the implicit step on the chosen root of the quartic: a
+# candidate accepted at ROOT_TOL (with a stiff normal coupling, relative to
+# |N_t| + |a.g| rather than N) can be off by ~1e-3 relative; two steps reach
+# round-off, the third makes the derivative of the last step the
+# implicit-function derivative.
+FINAL_STEPS = 3
+# Each of those steps moves lam by at most FINAL_CLIP lam, so that a flat Q
+# (a double root) cannot throw it onto another root.
+FINAL_CLIP = 1e-2
 # A root r of det(K + lam I) is a pole of the implicit step's g(lam) only if
 # |adj(K + r I) p| > POLE_TOL (|K|_F + r) |p|: the residue is exactly 0 when
 # p is an eigenvector of K (plane-parallel motion) and round-off leaves it at
 # ~1e-16 relative; 1e-12 sits well above that.
 POLE_TOL = 1e-12
+# Round-off of N = N_t - a.g relative to |N_t| + |a.g| that the check of a
+# candidate tolerates on top of ROOT_TOL: with a stiff normal coupling (an
+# axially rigid rod, cond(D_p) ~ 1e8) N is a small difference of large terms;
+# the hard case `stiff_axial` needs 1e-14 (lifts off spuriously with 0).
+CANCEL_TOL = 1e-12
+# The implicit step's root scale c stays within this factor of the
+# tangential stiffness |K|_F + mu |a|: slips of interest have lam = mu N/|g|
+# within a few decades of it, and the guard keeps c finite when the quartic
+# loses its leading or constant term.
+ROOT_SCALE_RANGE = 1e3
 # |n| must equal 1 to this tolerance at the Python boundary: the cone test
 # (1.5) is homogeneous in P but not in n, so a non-unit n changes mu.
 UNIT_TOL = 1e-9
@@ -186,7 +209,7 @@ def _paper(P0, Dp, n, l, mu, u0):
     k1 = ca.fmin(ca.fmax(k1, 0.0), ca.fmax(ub, 0.0))  # empty interval -> 0
     k1 = ca.if_else(C0 > 0, k1, 0.0)
 
-    # k2 (1.11) with the printed P2 = P0 + Dp l (ignores k1: NOTES §3.2).
+    # k2 (1.11) with the printed P2 = P0 + Dp l (ignores k1: docs/paper-notes.md §3.2).
     l_tau = l - ca.dot(n, l) * n  # l_tau = n x (l x n) (1.8)
     P2 = P0 + Dl
     N2 = ca.dot(n, P2)
@@ -222,7 +245,7 @@ def _paper(P0, Dp, n, l, mu, u0):
     B3 = ca.dot(P3, Pe) - c * N3 * Ne  # (1.13)
     C3 = _cone(P3, n, c)  # (1.13)
     H = ca.dot(P3 - N3 * n, Pe - Ne * n)  # (1.14)
-    # (1.15); the max(., 0) is the one departure from print (NOTES §3.3).
+    # (1.15); the max(., 0) is the one departure from print (docs/paper-notes.md §3.3).
     A3_div = ca.if_else(A3 != 0, A3, 1.0)
     k3_quadratic = (-B3 + _safe_sqrt(ca.fmax(B3**2 - A3 * C3, 0.0)) * ca.sign(H)) / A3_div
     k3_linear = _safe_div(-C3, 2 * B3)  # (1.15), A3 = 0
@@ -231,14 +254,14 @@ def _paper(P0, Dp, n, l, mu, u0):
 
     delta = delta3 + k3 * e  # (1.12)
     P = P0 + ca.mtimes(Dp, delta)  # (1.3)
-    # The printed method has no separation branch (NOTES §3.1): P is
+    # The printed method has no separation branch (docs/paper-notes.md §3.1): P is
     # returned even when tensile; contact is a diagnostic for the simulator.
     contact = ca.if_else(ca.dot(n, P) > 0, 1.0, 0.0)
     return dict(delta=delta, P=P, k=ca.vertcat(k1, k2, k3), contact=contact)
 
 
 # ---------------------------------------------------------------------------
-# contact_step_robust: NOTES §3 items 1-5 fixed (docs/contact-spec.md §2)
+# contact_step_robust: docs/paper-notes.md §3 items 1-5 fixed (docs/contact-spec.md §2)
 # ---------------------------------------------------------------------------
 def _robust(P0, Dp, n, l, mu, u0, friction):
     c = 1 + mu**2
@@ -326,8 +349,20 @@ def _robust(P0, Dp, n, l, mu, u0, friction):
     delta = delta3 + k3 * e
     P = _cone_clean(P0 + ca.mtimes(Dp, delta), n, mu)
 
-    # 6. Separation (item 1): tension, or no admissible k3.
-    lift = ca.logic_or(ca.dot(n, P) <= 0, no_root)
+    # 6. Separation (item 1): tension, or no admissible k3, or, with a
+    #    tensile trial force, friction along the accumulated slip
+    #    g = l - delta (P_tau.g < 0): the chain then landed on the cone in no
+    #    Coulomb state, and in plane-parallel motion the exact step has no
+    #    compressive solution either. With a compressive trial force the
+    #    exact step mostly has one in 3-D, and lifting off there is worse
+    #    than the anti-Coulomb answer (docs/contact.md, "robust"). The
+    #    tolerance keeps a P_tau of round-off (mu = 0) from deciding.
+    P_N = ca.dot(n, P)
+    slip = l - delta
+    anti_coulomb = ca.logic_and(
+        ca.dot(P - P_N * n, slip) < -CONE_TOL * _safe_norm(P) * _safe_norm(slip),
+        ca.dot(n, P_t) <= 0)
+    lift = ca.logic_or(ca.logic_or(P_N <= 0, no_root), anti_coulomb)
     k = ca.vertcat(k1, k2, k3)
     slip = _lift_off(lift, u0, dict(delta=delta, P=P, k=k, contact=ca.SX(1.0)))
     return dict(
@@ -357,47 +392,156 @@ def _tangent_basis(n):
     return e1, ca.cross(n, e1)
 
 
-def _active_pole(K11, K12, K21, K22, p1, p2):
-    """The largest lam > 0 where g(lam) = (K + lam I)^-1 p has a pole.
+def _coulomb_check(lam, g1, g2, ok, a1, a2, N_t, mu, N_min):
+    """Whether slip (g1, g2) with multiplier lam is a compressive Coulomb solution.
 
-    det(K + lam I) = lam^2 + tr lam + det K has real roots r1 >= r2 when
-    disc = tr^2 - 4 det K >= 0. A root r is a pole of g only if the residue
-    v = adj(K + r I) p is not zero: it vanishes when p is an eigenvector of K
-    (e.g. plane-parallel motion with a negative out-of-plane stiffness), and
-    then g passes r smoothly. Active: disc >= 0, r > 0 and
-    |v| > POLE_TOL (|K|_F + r) |p|. Returns (has_pole, lam_p, v1, v2) for the
-    larger active root, else the smaller one, else has_pole false; (v1, v2)
-    is oriented as g just above lam_p: g = v/det(K + lam I), and det > 0
-    just above r1 but < 0 just above r2 < r1, so v is negated for r2.
+    It is when `ok` (the slip is well defined), the normal force
+    N = N_t - a.g exceeds N_min (compressive beyond round-off) and the
+    secular equation lam |g| = mu N holds to ROOT_TOL (the squared quartic
+    also has the roots of lam |g| = -mu N, removed here by N > 0).
+    """
+    gg = g1 * g1 + g2 * g2
+    N = N_t - (a1 * g1 + a2 * g2)
+    # lam |g| = mu N with both sides >= 0, compared squared (no square root):
+    # |A - B| <= ROOT_TOL (A + B) for A, B >= 0 is within a factor 2 of the
+    # relative test on lam |g| - mu N.
+    # The tolerance scales with |N_t| + |a.g|, not N: with a stiff normal
+    # coupling N is a difference of large terms and carries their round-off.
+    lhs, rhs = lam * lam * gg, mu * mu * N * N
+    N_scale = ca.fabs(N_t) + ca.fabs(a1 * g1) + ca.fabs(a2 * g2)
+    valid = ca.logic_and(
+        ca.logic_and(ok, N > N_min),
+        ca.fabs(lhs - rhs) <= ROOT_TOL * (lhs + rhs) + CANCEL_TOL * mu * mu * N_scale * N_scale,
+    )
+    return valid
+
+
+def _secular_slip(lam, K11, K12, K21, K22, T, K_norm):
+    """g(lam) = (K + lam I)^-1 p = adj(K + lam I) p / det(K + lam I), p = (T, 0).
+
+    Returns (g1, g2, ok), ok False at a root of det(K + lam I) (to DET_TOL).
+    """
+    det = lam * lam + (K11 + K22) * lam + (K11 * K22 - K12 * K21)
+    ok = ca.fabs(det) > DET_TOL * (lam + K_norm) ** 2
+    inv = 1.0 / ca.if_else(ok, det, 1.0)
+    return (lam + K22) * T * inv, -K21 * T * inv, ok
+
+
+def _largest_pole(K11, K12, K21, K22, K_norm):
+    """The largest lam > 0 where g(lam) = (K + lam I)^-1 p, p = (T, 0), has a pole; 0 if none.
+
+    det(K + lam I) = lam^2 + tr lam + det K has real roots when
+    tr^2 - 4 det K >= 0. A positive root r is a pole of g only if the residue
+    adj(K + r I) p = T (r + K22, -K21) is not zero (to POLE_TOL): it vanishes
+    when p is an eigenvector of K, and g then passes r smoothly.
     """
     tr = K11 + K22
     det_K = K11 * K22 - K12 * K21
     disc = tr * tr - 4 * det_K
     q = -0.5 * (tr + _sign_plus(tr) * _safe_sqrt(disc))
-    q_other = _safe_div(det_K, q)
-    roots = (ca.fmax(q, q_other), ca.fmin(q, q_other))
-    K_norm = _safe_sqrt(K11**2 + K12**2 + K21**2 + K22**2)
-    p_norm = _safe_sqrt(p1**2 + p2**2)
-    has_pole, lam_p, v1, v2 = ca.SX(0), ca.SX(0.0), ca.SX(0.0), ca.SX(0.0)
-    for r, sign in ((roots[1], -1.0), (roots[0], 1.0)):  # the larger root wins
-        u1 = (K22 + r) * p1 - K12 * p2
-        u2 = (K11 + r) * p2 - K21 * p1
+    lam_p = ca.SX(0.0)
+    for r in (_safe_div(det_K, q), q):
         active = ca.logic_and(
-            ca.logic_and(disc >= 0, r > 0),
-            _safe_sqrt(u1 * u1 + u2 * u2) > POLE_TOL * (K_norm + r) * p_norm,
+            ca.logic_and(disc >= 0, r > lam_p),
+            _safe_sqrt((r + K22) ** 2 + K21 * K21) > POLE_TOL * (K_norm + r),
         )
-        has_pole = ca.logic_or(has_pole, active)
         lam_p = ca.if_else(active, r, lam_p)
-        v1 = ca.if_else(active, sign * u1, v1)
-        v2 = ca.if_else(active, sign * u2, v2)
-    return has_pole, lam_p, v1, v2
+    return lam_p
 
 
-def _solve2(M11, M12, M21, M22, r1, r2):
-    """(M^-1 r) by Cramer's rule, 0 where |det M| <= TINY."""
-    det = M11 * M22 - M12 * M21
-    return (_safe_div(M22 * r1 - M12 * r2, det),
-            _safe_div(M11 * r2 - M21 * r1, det))
+def _family_slips(K11, K12, K21, K22, a1, a2, T, N_t, mu, K_norm):
+    """The slips at lam = -K22 when K21 = 0: det(K + lam I) = 0 and g not unique.
+
+    With K21 = 0 (t1 an eigenvector of K) and lam* = -K22 > 0, every
+    g = (alpha + beta s, s), alpha = T/(K11 + lam*), beta = -K12/(K11 + lam*),
+    solves (K + lam* I) g = p; lam* |g| = mu N, N = N0 - gamma s with
+    N0 = N_t - a1 alpha and gamma = a1 beta + a2, then fixes s by the quadratic
+    A s^2 + 2 B s + C = 0 below. Returns two (lam*, g1, g2, ok).
+    """
+    lam = -K22
+    M11 = K11 + lam
+    ok = ca.logic_and(
+        ca.logic_and(ca.fabs(K21) <= DET_TOL * K_norm, lam > 0),
+        ca.fabs(M11) > DET_TOL * (lam + K_norm),
+    )
+    inv = 1.0 / ca.if_else(ok, M11, 1.0)
+    alpha, beta = T * inv, -K12 * inv
+    N0 = N_t - a1 * alpha
+    gamma = a1 * beta + a2
+    lam2, mu2 = lam * lam, mu * mu
+    A = lam2 * (beta * beta + 1) - mu2 * gamma * gamma
+    B = lam2 * alpha * beta + mu2 * N0 * gamma
+    C = lam2 * alpha * alpha - mu2 * N0 * N0
+    disc = B * B - A * C
+    ok = ca.logic_and(ok, disc >= 0)
+    q = -(B + _sign_plus(B) * _safe_sqrt(disc))  # stable roots q/A and C/q
+    out = []
+    for s, s_ok in ((_safe_div(q, A), ca.fabs(A) > TINY), (_safe_div(C, q), ca.fabs(q) > TINY)):
+        out.append((lam, alpha + beta * s, s, ca.logic_and(ok, s_ok)))
+    return out
+
+
+def _quartic(K11, K12, K21, K22, a1, a2, T, N_t, mu, K_norm):
+    """Coefficients [Q0..Q4] of the implicit step's quartic in lam, and its root scale c.
+
+    Q(lam) = lam^2 |adj(K + lam I) p|^2 - mu^2 R(lam)^2 with p = (T, 0):
+    |adj p|^2 = T^2 ((lam + K22)^2 + K21^2) and
+    R(lam) = N_t det(K + lam I) - a.adj(K + lam I) p = r2 lam^2 + r1 lam + r0.
+    The closed form is most accurate with the roots spread evenly around
+    c: c = |Q0/Q4|^(1/4), their geometric mean, kept within
+    ROOT_SCALE_RANGE of the stiffness scale |K|_F + mu |a| (Q4 or Q0 can
+    vanish).
+    """
+    T2, mu2 = T * T, mu * mu
+    r2 = N_t
+    r1 = N_t * (K11 + K22) - T * a1
+    r0 = N_t * (K11 * K22 - K12 * K21) - T * (a1 * K22 - a2 * K21)
+    Q = [-mu2 * r0 * r0,
+         -2 * mu2 * r1 * r0,
+         T2 * (K22 * K22 + K21 * K21) - mu2 * (r1 * r1 + 2 * r2 * r0),
+         2 * T2 * K22 - 2 * mu2 * r2 * r1,
+         T2 - mu2 * r2 * r2]
+    stiff = K_norm + mu * _safe_sqrt(a1 * a1 + a2 * a2)
+    stiff = ca.if_else(stiff > TINY, stiff, 1.0)
+    mean = _safe_sqrt(_safe_sqrt(_safe_div(ca.fabs(Q[0]), ca.fabs(Q[4]))))
+    return Q, ca.fmin(ca.fmax(mean, stiff / ROOT_SCALE_RANGE), stiff * ROOT_SCALE_RANGE)
+
+
+def _polish_root(Q, lam):
+    """FINAL_STEPS Newton steps on Q at the chosen root, each clipped to FINAL_CLIP lam.
+
+    The candidates are accepted at ROOT_TOL; this brings lam to round-off
+    (Coulomb-exact), and its derivative is then the implicit-function one.
+    The clip keeps a flat Q (a double root) from moving lam far.
+    """
+    for _ in range(FINAL_STEPS):
+        f = (((Q[4] * lam + Q[3]) * lam + Q[2]) * lam + Q[1]) * lam + Q[0]
+        df = ((4 * Q[4] * lam + 3 * Q[3]) * lam + 2 * Q[2]) * lam + Q[1]
+        lam = lam - ca.fmin(ca.fmax(_safe_div(f, df), -FINAL_CLIP * lam), FINAL_CLIP * lam)
+    return lam
+
+
+def _select(candidates, n_secular, lam_p, a1, a2, N_t, mu, N_min):
+    """The rule: of the valid candidates on the branch, the one of largest lam.
+
+    The branch is lam > lam_p (lam_p the largest pole of g(lam), 0 if none):
+    below it the foot would slide through infinity (snap-through). The largest
+    lam is the first solution met as the slip grows from zero along g(lam).
+    A slip ending at N <= N_min (round-off: the foot slides off its load) is
+    not contact. Candidates from index `n_secular` on are family slips.
+    Returns (found, lam, g1, g2, family).
+    """
+    found = ca.SX(0)
+    lam_best = g1 = g2 = family = ca.SX(0.0)
+    for i, (lam, h1, h2, ok) in enumerate(candidates):
+        on_branch = ca.logic_or(lam > lam_p, lam_p <= 0)
+        valid = _coulomb_check(lam, h1, h2, ca.logic_and(ok, on_branch), a1, a2, N_t, mu, N_min)
+        better = ca.logic_and(valid, ca.logic_or(ca.logic_not(found), lam > lam_best))
+        lam_best = ca.if_else(better, lam, lam_best)
+        g1, g2 = ca.if_else(better, h1, g1), ca.if_else(better, h2, g2)
+        family = ca.if_else(better, 1.0 if i >= n_secular else 0.0, family)
+        found = ca.logic_or(found, valid)
+    return found, lam_best, g1, g2, family
 
 
 def _implicit(P0, Dp, n, l, mu, u0, friction):
@@ -405,19 +549,19 @@ def _implicit(P0, Dp, n, l, mu, u0, friction):
 
     Coulomb's law for the slip g (n.g = 0, the foot slides by -g relative to
     the plane): |P_tau| <= mu n.P, and P_tau = mu (n.P) g/|g| when g != 0.
-    In the tangent frame (t1, t2) of the trial force, P_tau(g) = p - K g and
-    N(g) = N_t - a.g. Writing lam = mu N/|g| >= 0 turns R(g) = 0 into
-    (K + lam I) g = p plus the scalar secular equation
+    In the tangent frame (t1, t2) of the trial force, P_tau(g) = p - K g,
+    p = (T_t, 0), and N(g) = N_t - a.g. With lam = mu N/|g| >= 0 this is
+    (K + lam I) g = p and lam |g| = mu N; multiplied by det(K + lam I)
+    and squared, every slip solution is a real root lam >= 0 of the quartic
 
-        F(lam) = lam - mu N(g(lam)) / |g(lam)| = 0,
+        lam^2 |adj(K + lam I) p|^2 = mu^2 (N_t det(K + lam I) - a.adj(K + lam I) p)^2.
 
-    solved by NEWTON_ITERS Newton steps safeguarded by a bracket [lo, hi]:
-    lo is 0, or the largest pole of (K + lam I)^-1 (the branch connected to
-    small slip), hi a bound above which F > 0. A Newton step leaving the
-    bracket is replaced by a geometric bisection sqrt(lo hi), or by
-    BISECT_FRACTION*hi while lo = 0. No root on the branch (F > 0 at lo)
-    means lift-off. The Coulomb direction law holds at every iterate,
-    R(g(lam)) = F |g| g/|g|; only the magnitude is iterated.
+    All its roots are found (``contact_quartic.quartic_roots``), plus
+    lam = 0 (the frictionless slide, a solution only when mu N = 0); each is
+    checked against the unsquared equation with N > 0, and the solution of
+    least slip |g| is taken (docs/contact.md, "Selection rule"). Stick wins
+    when the trial force is inside the cone; lift-off only when no
+    solution exists.
     """
     # 1. Stick trial.
     P_t = P0 + ca.mtimes(Dp, l)  # (1.3) with delta = l
@@ -431,78 +575,52 @@ def _implicit(P0, Dp, n, l, mu, u0, friction):
     T_t = _safe_sqrt(c1 * c1 + c2 * c2)
     t1 = _safe_div(c1, T_t) * e1 + _safe_div(c2, T_t) * e2
     # (1.4) as T_t <= mu N_t rather than C(P_t) <= 0 (1.5): at mu = 0,
-    # C = |P_tau|^2 loses any |P_tau| below 1e-8 |P_t| to round-off. The same
-    # T_t enters hi and lam0 below, so that slip implies T_t - mu N_t > 0.
+    # C = |P_tau|^2 loses any |P_tau| below 1e-8 |P_t| to round-off.
     stick = ca.logic_and(T_t <= mu * N_t, N_t > 0)
 
-    # 3. Slip in the tangent frame (t1, t2) of the trial force.
+    # 2. Slip in the tangent frame (t1, t2) of the trial force, p = (T_t, 0).
     t2 = ca.cross(n, t1)
     Dt1 = ca.mtimes(Dp, t1)
     Dt2 = ca.mtimes(Dp, t2)
     K11, K12 = ca.dot(t1, Dt1), ca.dot(t1, Dt2)
     K21, K22 = ca.dot(t2, Dt1), ca.dot(t2, Dt2)
     a1, a2 = ca.dot(n, Dt1), ca.dot(n, Dt2)
-    p1, p2 = ca.dot(t1, P_t), ca.dot(t2, P_t)
-
+    K_norm = _safe_sqrt(K11**2 + K12**2 + K21**2 + K22**2)
+    lams = [ca.SX(0.0)]  # the frictionless slide g = K^-1 p
     if friction:
-        def secular(lam):
-            """g(lam), F(lam), F'(lam) (docs/contact-spec.md §3)."""
-            M11, M22 = K11 + lam, K22 + lam
-            g1, g2 = _solve2(M11, K12, K21, M22, p1, p2)
-            dg1, dg2 = _solve2(M11, K12, K21, M22, g1, g2)
-            dg1, dg2 = -dg1, -dg2
-            g_norm = _safe_sqrt(g1 * g1 + g2 * g2)
-            inv_norm = _safe_div(1.0, g_norm)
-            N = N_t - (a1 * g1 + a2 * g2)
-            dN = -(a1 * dg1 + a2 * dg2)
-            dg_norm = (g1 * dg1 + g2 * dg2) * inv_norm
-            F = lam - mu * _safe_div(N, g_norm)
-            dF = 1 - mu * _safe_div(dN * g_norm - N * dg_norm, g_norm * g_norm)
-            return g1, g2, F, dF
+        lams = []
+        Q, c = _quartic(K11, K12, K21, K22, a1, a2, T_t, N_t, mu, K_norm)
+        lams += quartic_roots(Q, c)
+        # lam = 0 (the frictionless slide) solves lam |g| = mu N only when
+        # mu N = 0: at mu = 0 it replaces the first root (the quartic is then
+        # T^2 lam^2 |w|^2, whose roots are 0 and complex).
+        lams[0] = ca.if_else(mu > 0, lams[0], 0.0)
+    candidates = [(lam, *_secular_slip(lam, K11, K12, K21, K22, T_t, K_norm)) for lam in lams]
+    if friction:
+        candidates += _family_slips(K11, K12, K21, K22, a1, a2, T_t, N_t, mu, K_norm)
 
-        has_pole, lam_p, v1, v2 = _active_pole(K11, K12, K21, K22, p1, p2)
-        lo = ca.if_else(has_pole, lam_p, 0.0)
-        K_norm = _safe_sqrt(K11**2 + K12**2 + K21**2 + K22**2)
-        a_norm = _safe_sqrt(a1**2 + a2**2)
-        # F > 0 above hi because |g| >= |p|/(|K|_F + lam), |p| = T_t, and
-        # N/|g| <= max(N_t, 0)/|g| + |a|.
-        N_plus = ca.fmax(N_t, 0.0)
-        hi = ca.fmax(lo, _safe_div(mu * (N_plus * K_norm + a_norm * T_t), T_t - mu * N_plus))
-        # F at lo+: g -> +inf * v just above the pole, so N/|g| -> -a.v/|v|.
-        v_norm = _safe_sqrt(v1 * v1 + v2 * v2)
-        F_pole = lam_p + mu * _safe_div(a1 * v1 + a2 * v2, v_norm)
-        _, _, F_zero, _ = secular(ca.SX(0.0))
-        F_lo = ca.if_else(has_pole, F_pole, F_zero)
-        no_root = F_lo > 0
-
-        # Start from the radial return g = ((T_t - mu N_t)/K11) t1.
-        lam0 = ca.if_else(K11 > TINY, _safe_div(mu * N_t * K11, T_t - mu * N_t), 0.0)
-        lam = ca.if_else(ca.logic_and(lo < lam0, lam0 <= hi), lam0, 0.5 * (lo + hi))
-        for _ in range(NEWTON_ITERS):
-            _, _, F, dF = secular(lam)
-            below = F < 0
-            lo = ca.if_else(below, lam, lo)
-            hi = ca.if_else(below, hi, lam)
-            lam_newton = lam - _safe_div(F, dF)
-            accept = ca.logic_and(
-                ca.fabs(dF) > TINY,
-                ca.logic_and(lo <= lam_newton, lam_newton <= hi),
-            )
-            bisect = ca.if_else(lo > 0, _safe_sqrt(lo) * _safe_sqrt(hi), BISECT_FRACTION * hi)
-            lam = ca.if_else(accept, lam_newton, bisect)
-        g1, g2, _, _ = secular(lam)
-    else:
-        # mu = 0: F(lam) = lam, the root is lam = 0: one exact step
-        # g = K^-1 p (frictionless slide), unless an active pole lies above
-        # it (F_lo = lam_p > 0), exactly as the full graph decides.
-        g1, g2 = _solve2(K11, K12, K21, K22, p1, p2)
-        no_root, _, _, _ = _active_pole(K11, K12, K21, K22, p1, p2)
+    # 3. Selection (docs/contact.md, "Selection rule"), then the polish of
+    #    the chosen root; family candidates keep their own g.
+    found, lam_best, g1, g2, family = _select(
+        candidates, len(lams), _largest_pole(K11, K12, K21, K22, K_norm),
+        a1, a2, N_t, mu, CONE_TOL * _safe_sqrt(N_t * N_t + T_t * T_t))
+    if friction:
+        lam = _polish_root(Q, lam_best)
+        h1, h2, ok = _secular_slip(lam, K11, K12, K21, K22, T_t, K_norm)
+        polish = ca.logic_and(ok, family == 0)
+        g1, g2 = ca.if_else(polish, h1, g1), ca.if_else(polish, h2, g2)
 
     # 4. In contact: delta = l - g, P = P0 + Dp delta (1.3), clean-up.
     g = g1 * t1 + g2 * t2
     delta = l - g
-    P = _cone_clean(P0 + ca.mtimes(Dp, delta), n, mu)
-    lift = ca.logic_or(no_root, ca.dot(n, P) <= 0)
+    # On the cone, opposite the slip, by construction: P_tau = mu N g/|g|
+    # with N = n.(P0 + Dp delta) (1.3). Rebuilding P_tau from (1.3) instead
+    # would leave it off the cone by round-off times cond(D_p) when |g| is
+    # large (a long slide of a stiff foot).
+    N = ca.dot(n, P0 + ca.mtimes(Dp, delta))
+    g_hat, _ = _unit(g)
+    P = N * n + mu * N * g_hat
+    lift = ca.logic_or(ca.logic_not(found), N <= 0)
     zero = ca.SX.zeros(3, 1)
     slip = _lift_off(lift, u0, dict(delta=delta, P=P, k=ca.if_else(lift, zero, g), contact=ca.SX(1.0)))
     return dict(
@@ -588,7 +706,7 @@ def contact_step_expr(method, P0, Dp, n, l, mu, u0, *, friction=None):
 
     References
     ----------
-    Khvostov (1976), §1, (1.3)-(1.15); NOTES §3 for the fixes of 'robust'.
+    Khvostov (1976), §1, (1.3)-(1.15); docs/paper-notes.md §3 for the fixes of 'robust'.
     """
     _check_method(method)
     if friction is None:
@@ -623,6 +741,36 @@ def _build(method, friction):
         INPUT_NAMES,
         OUTPUT_NAMES,
     )
+
+
+@functools.lru_cache(maxsize=None)
+def _build_call(method, friction):
+    f = _build(method, friction)
+    sym = f.sx_in()
+    # never_inline: an SX graph calling this keeps one call node per call, so
+    # that a simulator calls one compiled copy instead of inlining eight
+    return ca.Function(f"{f.name()}_call", sym, f.call(sym), INPUT_NAMES, OUTPUT_NAMES,
+                       {"never_inline": True})
+
+
+def contact_step_call(method, P0, Dp, n, l, mu, u0, *, friction=None):
+    """The step of :func:`contact_step_expr` as a call node of one shared Function.
+
+    Same arguments and returned dict as :func:`contact_step_expr`, but the
+    SX graph holds a call of the ``never_inline`` Function
+    ``contact_step_<method>[_frictionless]_call`` instead of the step's
+    instructions: a graph with several legs and passes contains (and its
+    generated C compiles) the step once. Derivatives through the call are
+    CasADi's derivative Functions of the call node.
+    """
+    _check_method(method)
+    if friction is None:
+        friction = not _is_literal_zero(mu)
+    args = [_as_sx(x, name, shape) for x, name, shape in
+            ((P0, "P0", (3, 1)), (Dp, "Dp", (3, 3)), (n, "n", (3, 1)), (l, "l", (3, 1)),
+             (mu, "mu", (1, 1)), (u0, "u0", (3, 1)))]
+    out = _build_call(method, bool(friction))(*args)
+    return dict(zip(OUTPUT_NAMES, out))
 
 
 def contact_step(method, friction=True):

@@ -50,7 +50,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from .contact import contact_step_expr
+from .contact import contact_step_call
 from .layout import (BODY_OUT, BODY_STATE, LEG_OUT, LEG_STATE, MODES, ParamLayout, default_p,
                      output_layout, param_layout, quat_exp, quat_mul, quat_to_rot,
                      quat_to_rot_np, state_layout)
@@ -242,7 +242,7 @@ def build_model(scene: Scene) -> StepModel:
         v_rel = l / h                                          # selects loading branches
         P0 = fns["strut_force"](rho_s, v_rel, p_leg)
         Dp = fns["strut_stiffness"](rho_s, v_rel, p_leg)
-        out = contact_step_expr(scene.method, P0, Dp, n_b, l, mu, u0,
+        out = contact_step_call(scene.method, P0, Dp, n_b, l, mu, u0,
                                 friction=friction)
         if scene.tangent_plane == "end":
             # second pass: the tangent plane at the predicted end point, shifted along
@@ -251,7 +251,7 @@ def build_model(scene: Scene) -> StepModel:
             _, normal_w, _ = closest_obstacle(scene.obstacles, r_pred)
             n_b = R1.T @ normal_w
             l = l + n_b * ca.dot(n_b, R1.T @ (r_pred - r_s))
-            out = contact_step_expr(scene.method, P0, Dp, n_b, l, mu, u0,
+            out = contact_step_call(scene.method, P0, Dp, n_b, l, mu, u0,
                                     friction=friction)
         stays = ca.logic_and(active, out["contact"] > 0.5)
         rho1 = ca.if_else(stays, rho_s + out["delta"], rest[j])

@@ -1,0 +1,125 @@
+"""How fast is a compiled touchdown step against MuJoCo, and how long does it compile?
+
+Question (the cost items of the exact contact step): for the Fig. 4 scene
+(4 rods on a dome, μ = 0.05) with the implicit contact step, and the Fig. 3
+scene (μ = 0, its own method), how many µs does one compiled symcushion step
+take against one MuJoCo step on the project's MuJoCo model of the same scene,
+both run natively in this process; and how long does gcc take at -O3 on the
+Fig. 4 touchdown source?
+
+Method.
+symcushion: ``symcushion.codegen.compiled_model`` builds the scene's C code;
+its compiled ``touchdown_rollout`` (N steps in one C call, no Python per
+step) is called on the scene's initial state, best of BEST_OF calls; µs per
+step = time / N. Compile time: gcc's CPU time on the generated touchdown
+source alone with ``codegen.CFLAGS`` (-O3).
+MuJoCo: ``symcushion.peers.build_mjcf`` on the same scene (its default
+timestep, solver settings of docs/peers.md), the state set by one short
+``mujoco_simulate``-equivalent start (free joint at the scene's initial pose
+and velocity), then ``mujoco.mj_step(model, data, nstep=M)`` once, best of
+BEST_OF calls; µs per MuJoCo step = time / M. The ratio printed is MuJoCo's
+µs per step over symcushion's µs per step, as in the cost target.
+
+Output: the numbers and ratios on stdout. Run:
+``python studies/bench_touchdown.py``.
+"""
+from __future__ import annotations
+
+import resource
+import subprocess
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from symcushion import codegen
+from symcushion.codegen import CFLAGS, compiled_model
+from symcushion.peers.mujoco_model import build_mjcf, mujoco_available
+from symcushion.scene import load_scene
+from symcushion.simulate import initial_state
+
+ROOT = Path(__file__).resolve().parent.parent
+FIG3 = ROOT / "studies" / "fig3.toml"
+FIG4 = ROOT / "studies" / "fig4.toml"
+#: Timed calls per measurement; the best is kept (the least disturbed).
+BEST_OF = 5
+#: Simulated time per timed call (s): the touchdown and the first rebound.
+SECONDS = 0.3
+
+
+def compile_cpu(source: Path, out_dir: Path) -> float:
+    """CPU seconds of gcc on one generated source with codegen.CFLAGS (-O3)."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    subprocess.run([codegen.find_compiler(), *CFLAGS, "-c", str(source), "-o",
+                    str(out_dir / "timed.o")], check=True, capture_output=True)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+
+
+def symcushion_us(scene, folder: Path) -> tuple[float, float, int]:
+    """(µs per compiled step, gcc CPU s at -O3 of the touchdown source, SX instructions)."""
+    steps = int(round(SECONDS / scene.dt))
+    model = compiled_model(scene, folder, steps=steps)
+    x0 = initial_state(scene)
+    p = np.zeros(model.np)
+    rollout = model.rollout(steps)
+    best = np.inf
+    for _ in range(BEST_OF):
+        start = time.perf_counter()
+        rollout(x0, p, scene.dt)
+        best = min(best, time.perf_counter() - start)
+    seconds = compile_cpu(folder / f"{codegen.TOUCHDOWN}.c", folder)
+    from symcushion.simulate import build_model
+    return 1e6 * best / steps, seconds, build_model(scene).step.n_instructions()
+
+
+def mujoco_us(scene) -> tuple[float, float]:
+    """(µs per native mj_step, MuJoCo timestep in s) on the project's model of the scene."""
+    import mujoco
+    from symcushion.peers import mujoco_model as mm
+
+    xml, settings = build_mjcf(scene)
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    pos0, vel0, quat0, omega0, legs0 = mm._joint_state(scene, initial_state(scene))
+    steps = int(round(SECONDS / model.opt.timestep))
+    best = np.inf
+    for _ in range(BEST_OF):
+        mujoco.mj_resetData(model, data)
+        data.qpos[0:3], data.qpos[3:7] = pos0, quat0
+        data.qvel[0:3], data.qvel[3:6] = vel0, omega0
+        for j, (th_g, th_b, stroke) in enumerate(legs0):
+            data.qpos[model.jnt_qposadr[model.joint(f"leg{j}_gamma").id]] = th_g
+            data.qpos[model.jnt_qposadr[model.joint(f"leg{j}_beta").id]] = th_b
+        mujoco.mj_forward(model, data)
+        start = time.perf_counter()
+        mujoco.mj_step(model, data, nstep=steps)
+        best = min(best, time.perf_counter() - start)
+    return 1e6 * best / steps, float(model.opt.timestep)
+
+
+def main() -> None:
+    if not mujoco_available():
+        raise SystemExit("MuJoCo is not installed: pip install symcushion[peers]")
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for label, path, method, target in (("Fig. 4", FIG4, "implicit", 2.0),
+                                            ("Fig. 3", FIG3, None, 3.5)):
+            scene = load_scene(path)
+            if method:
+                scene = scene.with_(method=method)
+            scene = scene.with_(duration=SECONDS)
+            us, gcc, instr = symcushion_us(scene, Path(tmp) / label.replace(". ", ""))
+            mj, h = mujoco_us(scene)
+            rows.append((label, scene.method, scene.mu, us, gcc, instr, mj, h, target))
+    print("| scene | method | μ | SX instr. (step) | gcc -O3 CPU s | symcushion µs/step (Δt) "
+          "| MuJoCo µs/step (h) | MuJoCo/symcushion per step | target |")
+    print("|---|---|---:|---:|---:|---:|---:|---:|---:|")
+    for label, method, mu, us, gcc, instr, mj, h, target in rows:
+        print(f"| {label} | {method} | {mu:g} | {instr:,} | {gcc:.1f} | {us:.2f} | "
+              f"{mj:.2f} ({h:g} s) | {mj / us:.2f} | ≥ {target:g} |")
+
+
+if __name__ == "__main__":
+    main()
