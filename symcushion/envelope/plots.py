@@ -60,6 +60,11 @@ def _heading_from_fall_line(heading_deg):
     return np.abs((np.asarray(heading_deg) + 180.0) % 360.0 - 180.0)
 
 
+#: Names shared by the figures of :func:`plot_envelope`.
+_CONTEXT = ("out", "st", "c", "col", "name", "cls", "stable", "vh", "vv", "slope",
+            "heading", "slope_bins", "heading_bins", "result")
+
+
 def plot_envelope(result: EnvelopeResult, out_dir) -> dict:
     """Write the envelope figures; return their paths by kind.
 
@@ -93,6 +98,18 @@ def plot_envelope(result: EnvelopeResult, out_dir) -> dict:
     slope_bins = _slope_bins(slope)
     heading_bins = _HEADINGS if np.ptp(heading) > 0 and np.ptp(vh) > 0 else (("all", 0, 180),)
 
+    context = dict(out=out, st=st, c=c, col=col, name=name, cls=cls, stable=stable, vh=vh,
+                   vv=vv, slope=slope, heading=heading, slope_bins=slope_bins,
+                   heading_bins=heading_bins, result=result)
+    for draw in (_plot_boundary, _plot_pstable, _plot_distributions):
+        draw(plt, context, files)
+    return files
+
+
+def _plot_boundary(plt, context: dict, files: dict):
+    """The stability-boundary panels (``<name>.png``)."""
+    (out, st, c, col, name, cls, stable, vh, vv, slope, heading, slope_bins, heading_bins,
+     result) = (context[k] for k in _CONTEXT)
     # 1. boundary panels
     nr, nc = len(heading_bins), len(slope_bins)
     fig, axes = plt.subplots(nr, nc, figsize=(3.6 * nc + 1.2, 3.0 * nr + 0.8), squeeze=False,
@@ -138,6 +155,11 @@ def plot_envelope(result: EnvelopeResult, out_dir) -> dict:
     fig.savefig(files["boundary"], dpi=110)
     plt.close(fig)
 
+
+def _plot_pstable(plt, context: dict, files: dict):
+    """P(stable) against slope, with its CSV (``<name>_pstable.*``)."""
+    (out, st, c, col, name, cls, stable, vh, vv, slope, heading, slope_bins, heading_bins,
+     result) = (context[k] for k in _CONTEXT)
     # 2. P(stable) against slope
     fig, ax = plt.subplots(figsize=(6, 4))
     edges = np.linspace(slope.min(), slope.max(), 7) if np.ptp(slope) > 0 else \
@@ -173,6 +195,11 @@ def plot_envelope(result: EnvelopeResult, out_dir) -> dict:
     files["pstable_csv"] = out / f"{name}_pstable.csv"
     files["pstable_csv"].write_text("\n".join(table) + "\n")
 
+
+def _plot_distributions(plt, context: dict, files: dict):
+    """Histograms of the measures against the limits."""
+    (out, st, c, col, name, cls, stable, vh, vv, slope, heading, slope_bins, heading_bins,
+     result) = (context[k] for k in _CONTEXT)
     # 3. distributions
     lim = st.limits
     panels = (("peak_decel", "peak deceleration |a − g| (m/s²)", lim.deceleration),
@@ -194,4 +221,3 @@ def plot_envelope(result: EnvelopeResult, out_dir) -> dict:
     files["distributions"] = out / f"{name}_distributions.png"
     fig.savefig(files["distributions"], dpi=110)
     plt.close(fig)
-    return files

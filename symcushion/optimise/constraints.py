@@ -46,7 +46,7 @@ class _Constraints:
     """
 
     def _build(self):
-        lim = self.limits
+        """Assemble ``design_fg``: variables (scaled θ, epigraph t), every row, the bounds."""
         nv = len(self.var_names)
         w = ca.MX.sym("w", nv)                     # scaled design θ/scale
         t = ca.MX.sym("t")                         # scaled epigraph variable
@@ -72,6 +72,31 @@ class _Constraints:
             n_rows += expr.numel()
 
         # the initial design's peak scales the epigraph variable
+        peak_exprs, stroke_exprs = self._scenario_measures(p)
+        ref = self._objective_scale(w, peak_exprs, stroke_exprs)
+        self._add_limit_rows(add, t, ref)
+
+        self._add_shape_constraints(theta, add)
+        g = ca.vertcat(*rows)
+        self.blocks = blocks
+        self._w, self._t = w, t
+        self.nlp = {"x": ca.vertcat(w, t), "f": t, "g": g}
+        self.lbg = np.concatenate([np.full(b.stop - b.start, b.lower) for b in blocks])
+        self.ubg = np.concatenate([np.full(b.stop - b.start, b.upper) for b in blocks])
+        self._fg = ca.Function("design_fg", [self.nlp["x"]], [self.nlp["f"], g], ["x"],
+                               ["f", "g"])
+        self._outputs = ca.Function(
+            "design_outputs", [w], [ca.vertcat(*[ca.vertcat(
+                ca.vec(m["acc"]), *[ca.vec(d) for d in m["strokes"]],
+                *[ca.vec(b) for b in m["betas"]], *[ca.vec(c) for c in m["gammas"]],
+                ca.vec(m["tilt"]), m["v_up"]) for m in self._measure])], ["w"], ["y"])
+
+    def _scenario_measures(self, p):
+        """Per scenario, the measures of every rollout step as expressions of the design.
+
+        Sets ``self._measure`` (one dict per scenario) and returns the expressions of
+        the vertical specific force and of the axial strokes, which scale the objective.
+        """
         self._measure = []
         peak_exprs, stroke_exprs = [], []
         for s, model in zip(self.scenarios, self.models):
@@ -93,7 +118,10 @@ class _Constraints:
                                       tilt=one_minus_cos_tilt, v_up=v_up, axial=axial))
             peak_exprs.append(acc)
             stroke_exprs += [strokes[j] for j in axial]
+        return peak_exprs, stroke_exprs
 
+    def _objective_scale(self, w, peak_exprs, stroke_exprs):
+        """The initial design's objective (the scale of the epigraph variable t)."""
         w0 = self.initial / self.scale
         if self.objective_kind == "peak_deceleration":
             ref = max(float(np.max(np.concatenate([
@@ -109,7 +137,11 @@ class _Constraints:
                 np.asarray(ca.Function("d", [w], [d])(w0)).ravel() for d in stroke_exprs])))),
                 1e-12)
         self.objective_scale = ref
+        return ref
 
+    def _add_limit_rows(self, add, t, ref):
+        """Epigraph rows of the objective and the rows of every given limit, per step."""
+        lim = self.limits
         for s, model, m in zip(self.scenarios, self.models, self._measure):
             dt = s.scene.dt
             if self.objective_kind == "peak_deceleration":
@@ -143,20 +175,6 @@ class _Constraints:
                 add(m["v_up"], "final_speed", sc, bottom / sc, top / sc, "m/s", s.name,
                     label="final vertical speed")
 
-        self._add_shape_constraints(theta, add)
-        g = ca.vertcat(*rows)
-        self.blocks = blocks
-        self._w, self._t = w, t
-        self.nlp = {"x": ca.vertcat(w, t), "f": t, "g": g}
-        self.lbg = np.concatenate([np.full(b.stop - b.start, b.lower) for b in blocks])
-        self.ubg = np.concatenate([np.full(b.stop - b.start, b.upper) for b in blocks])
-        self._fg = ca.Function("design_fg", [self.nlp["x"]], [self.nlp["f"], g], ["x"],
-                               ["f", "g"])
-        self._outputs = ca.Function(
-            "design_outputs", [w], [ca.vertcat(*[ca.vertcat(
-                ca.vec(m["acc"]), *[ca.vec(d) for d in m["strokes"]],
-                *[ca.vec(b) for b in m["betas"]], *[ca.vec(c) for c in m["gammas"]],
-                ca.vec(m["tilt"]), m["v_up"]) for m in self._measure])], ["w"], ["y"])
 
     def _add_shape_constraints(self, theta, add):
         """Monotone loading, onset slope and unloading-below rows, in terms of θ."""
