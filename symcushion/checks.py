@@ -28,7 +28,8 @@ import numpy as np
 
 from .obstacles import ImplicitSurface, Terrain
 from .scene import Scene
-from .simulate import BODY_STATE, LEG_STATE, build_model, initial_state, stable_dt
+from .layout import state_layout
+from .touchdown import build_model, initial_state, stable_dt
 from .validation import SceneError
 
 __all__ = ["Finding", "PhysicsWarning", "check_scene", "preflight",
@@ -143,11 +144,11 @@ def _distances(scene: Scene, points) -> np.ndarray:
 
 def _world_points(scene: Scene, X):
     """Body centre (3, n), hinges (N, 3, n) and feet (N, 3, n) of states X (nx, n)."""
-    R = _rotations(X[6:10])
-    pos = X[0:3]
+    xl = state_layout(len(scene.legs))
+    R = _rotations(xl.get(X, "attitude"))
+    pos = xl.get(X, "position")
     hinges = np.stack([pos + np.einsum("nij,j->in", R, leg.hinge) for leg in scene.legs])
-    feet = np.stack([X[BODY_STATE + LEG_STATE * j: BODY_STATE + LEG_STATE * j + 3]
-                     for j in range(len(scene.legs))])
+    feet = xl.legs(X, "foot")
     return pos, hinges, feet
 
 
@@ -223,7 +224,7 @@ def _check_start(scene, x0):
                                f"{-d_hinge[k]:.3g} m inside {_where(scene, k)}; move the body "
                                "out of the obstacle.", "error", leg=j,
                                value=float(-d_hinge[k]), field="body.position"))
-    speed = float(np.linalg.norm(x0[3:6]))
+    speed = float(np.linalg.norm(state_layout(len(scene.legs)).get(x0, "velocity")))
     shortest = min(leg.length for leg in scene.legs)
     if speed * scene.dt > FAST_STEP_FRACTION * shortest:
         out.append(Finding("fast_impact", f"`scene.dt`: at the initial speed {speed:.3g} m/s a "

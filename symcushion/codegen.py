@@ -42,7 +42,7 @@ import casadi as ca
 import numpy as np
 
 from .contact import METHODS, contact_step
-from .layout import default_p, param_layout
+from .layout import default_p, param_layout, state_columns
 from .results import check_out_dir
 from .scene import Scene, load_scene
 from .touchdown import StepModel, build_model, initial_state
@@ -100,11 +100,6 @@ CFLAGS = ("-O3", "-std=c99", "-fPIC", "-fno-math-errno", "-ffp-contract=off")
 #: check that gcc prints nothing.
 WARNINGS = ("-Wall",)
 
-#: Names of the entries of touchdown_step's state x (symcushion.simulate's layout),
-#: the CSV columns of the standalone program.
-_BODY_STATE_NAMES = ("pos_x", "pos_y", "pos_z", "vel_x", "vel_y", "vel_z",
-                     "quat_w", "quat_x", "quat_y", "quat_z", "omega_x", "omega_y", "omega_z")
-_LEG_STATE_NAMES = ("foot_x", "foot_y", "foot_z", "contact", "P_x", "P_y", "P_z")
 
 
 # ---------------------------------------------------------------------------
@@ -268,11 +263,6 @@ def _c_doubles(values) -> str:
     return "{\n    " + ",\n    ".join(rows) + "\n}"
 
 
-def _state_names(n_legs: int) -> list:
-    return list(_BODY_STATE_NAMES) + [f"leg{j}_{s}" for j in range(n_legs)
-                                      for s in _LEG_STATE_NAMES]
-
-
 def _as_scene(scene) -> Scene | None:
     if scene is None or isinstance(scene, Scene):
         return scene
@@ -412,10 +402,9 @@ extern "C" {{
 
 
 def _write_scene_data(out_dir: Path, scene: Scene, model: StepModel, steps: int) -> Path:
-    names = _state_names(len(scene.legs))
-    if len(names) != model.nx:
-        raise RuntimeError(f"state layout changed: {model.nx} states, {len(names)} names; "
-                           "update symcushion.codegen._LEG_STATE_NAMES.")
+    # the standalone program's CSV columns: the names of symcushion.layout, as in
+    # the trajectory.csv of `symcushion simulate`
+    names = state_columns(len(scene.legs))
     x0 = initial_state(scene)
     p = default_p(scene)
     name_rows = ",\n    ".join(_c_string(n) for n in names)

@@ -19,7 +19,8 @@ import numpy as np
 from .checks import BODY_TOLERANCE, Finding, _distances, _rotations, _world_points
 from .obstacles import Terrain
 from .scene import Scene
-from .simulate import BODY_STATE, LEG_STATE, initial_state
+from .layout import state_layout
+from .touchdown import initial_state
 from .validation import did_you_mean
 
 __all__ = ["RunMonitor", "DEFAULT_TOLERANCES", "ENERGY_FLOOR"]
@@ -91,22 +92,24 @@ class RunMonitor:
                 raise ValueError(f"`tolerances['{key}']` must be a positive number, got "
                                  f"{value!r}.")
             self.tolerances[key] = float(value)
-        self.nx = BODY_STATE + LEG_STATE * len(scene.legs)
+        self._xl = state_layout(len(scene.legs))
+        self.nx = self._xl.size
         x0 = initial_state(scene) if x0 is None else np.asarray(x0, dtype=float).ravel()
         self._energy0 = float(self._energy(x0[:, None])[0])
         self._supply = _energy_supply(scene, x0)
         g = float(np.linalg.norm(scene.gravity))
-        scale = (0.5 * scene.body.mass * float(x0[3:6] @ x0[3:6])
+        v0 = self._xl.get(x0, "velocity")
+        scale = (0.5 * scene.body.mass * float(v0 @ v0)
                  + scene.body.mass * g * max(leg.length for leg in scene.legs) + self._supply)
         self._allowed = self._supply + self.tolerances["energy"] * max(scale, ENERGY_FLOOR)
         self._reported: set = set()
 
     def _energy(self, X):
         b = self.scene.body
-        v, omega = X[3:6], X[10:13]
+        v, omega = self._xl.get(X, "velocity"), self._xl.get(X, "angular_velocity")
         return (0.5 * b.mass * np.sum(v * v, axis=0)
                 + 0.5 * np.einsum("in,ij,jn->n", omega, b.inertia, omega)
-                - b.mass * (self.scene.gravity @ X[0:3]))
+                - b.mass * (self.scene.gravity @ self._xl.get(X, "position")))
 
     def _add(self, out, kind, severity, t, message, leg=None, value=None):
         if (kind, leg) in self._reported:
@@ -180,7 +183,7 @@ class RunMonitor:
                 self._add(out, "pass_through", "error", t[i], f"leg {j} passed through the "
                           f"obstacle at t = {t[i]:.6g} s: its hinge is {-d_hinge[i]:.3g} m inside.",
                           leg=j, value=-d_hinge[i])
-            contact = X[BODY_STATE + LEG_STATE * j + 3] > 0.5
+            contact = self._xl.get(X, "contact", j) > 0.5
             for k, ob in enumerate(scene.obstacles):
                 if isinstance(ob, Terrain):
                     xs, ys = ob.grid
@@ -196,13 +199,14 @@ class RunMonitor:
 def _energy_supply(scene: Scene, x0) -> float:
     """Energy (J) the elements can give the body: elastic energy at x0 + |f(0)| × stroke."""
     supply = 0.0
-    R = _rotations(x0[6:10, None])[0]
+    x = state_layout(len(scene.legs)).unpack(np.asarray(x0, dtype=float))
+    R = _rotations(x["attitude"][:, None])[0]
     for j, leg in enumerate(scene.legs):
-        foot = x0[BODY_STATE + LEG_STATE * j: BODY_STATE + LEG_STATE * (j + 1)]
-        rho = R.T @ (foot[0:3] - x0[0:3]) if foot[3] > 0.5 else leg.rest_foot
-        geo = leg.functions()["strut_geometry"](rho)
-        deflection = {"S": float(geo[1]), "M_beta": float(geo[2]),
-                      "M_gamma": float(geo[3]) - leg.gamma0}
+        in_contact = x["contact"][j] > 0.5
+        rho = R.T @ (x["foot"][j] - x["position"]) if in_contact else leg.rest_foot
+        geo = leg.functions()["strut_geometry"](r=rho)
+        deflection = {"S": float(geo["delta_S"]), "M_beta": float(geo["beta"]),
+                      "M_gamma": float(geo["gamma"]) - leg.gamma0}
         for el in leg.elements:
             stroke = leg.length if el.name == "S" else np.pi
             xs = np.linspace(0.0, deflection[el.name], 65)

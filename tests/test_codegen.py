@@ -178,7 +178,8 @@ def test_standalone_program_equals_python_rollout(built, scene, tmp_path):
     report = dict(item.split("=", 1) for item in run.stderr.split()[1:])
     assert int(report["steps"]) == scene.steps and float(report["per_step_us"]) > 0
     header = csv.read_text().splitlines()[0].split(",")
-    assert header[:4] == ["t", "pos_x", "pos_y", "pos_z"] and len(header) == 42
+    assert header[:4] == ["t", "body_position_x_m", "body_position_y_m", "body_position_z_m"]
+    assert len(header) == 42
     table = np.loadtxt(csv, delimiter=",", skiprows=1)
     model = build_model(scene)
     x0 = initial_state(scene)
