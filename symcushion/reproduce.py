@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .results import check_out_dir
+from .results import atomic_write_text, check_out_dir, replacing
 from .scene import load_scene
 from .contact import METHODS
 from .driver import Trajectory, simulate
@@ -121,10 +121,10 @@ def _write_csv(traj: Trajectory, path: Path):
                 alpha=traj.alpha[:, 0], beta=traj.rod_angle[:, 0], gamma=traj.force_angle[:, 0])
     # rod angle on the first row is the rest pose
     cols["beta"] = np.where(np.isnan(cols["beta"]), 0.0, cols["beta"])
-    with open(path, "w") as fh:
-        fh.write(",".join(cols) + "\n")
-        for row in zip(*cols.values()):
-            fh.write(",".join("" if np.isnan(x) else f"{x:.10g}" for x in row) + "\n")
+    lines = [",".join(cols)]
+    lines += [",".join("" if np.isnan(x) else f"{x:.10g}" for x in row)
+              for row in zip(*cols.values())]
+    atomic_write_text(path, "\n".join(lines) + "\n")     # a killed run leaves no half file
 
 
 def _plot_paper_style(traj: Trajectory, title: str, path: Path):
@@ -156,7 +156,8 @@ def _plot_paper_style(traj: Trajectory, title: str, path: Path):
     ax.legend(loc="best", fontsize=8)
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path, dpi=110, metadata={"Software": None})
+    with replacing(path) as tmp:
+        fig.savefig(tmp, dpi=110, format="png", metadata={"Software": None})
     plt.close(fig)
 
 
@@ -183,7 +184,8 @@ def _plot_methods(trajs: dict, title: str, path: Path):
     axes[0].set_title(title)
     axes[-1].set_xlabel("t [s]")
     fig.tight_layout()
-    fig.savefig(path, dpi=110, metadata={"Software": None})
+    with replacing(path) as tmp:
+        fig.savefig(tmp, dpi=110, format="png", metadata={"Software": None})
     plt.close(fig)
 
 
@@ -235,7 +237,7 @@ def reproduce(scene_dir="studies", out_dir="out/reproduce", methods=METHODS_ORDE
                           out / f"{name}.png")
         _plot_methods(trajs, f"{paper_fig}: contact methods compared", out / f"{name}_methods.png")
     table = claims_table(results, {"fig3": 0.0, "fig4": 0.05})
-    (out / "claims.md").write_text(table + "\n")
+    atomic_write_text(out / "claims.md", table + "\n")
     if verbose:
         print(table)
         print(f"done in {time.perf_counter() - started:.1f} s; wrote {out}/fig3.png, "

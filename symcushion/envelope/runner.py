@@ -8,7 +8,6 @@ results. It must not define the case Function or the classification.
 from __future__ import annotations
 
 import json
-import math
 import os
 import sys
 import time
@@ -32,27 +31,26 @@ PROGRESS_INTERVAL = 0.5
 
 
 class _Progress:
-    """One stderr line: cases done, cases per second, estimated time left."""
+    """A progress bar on stderr (tqdm): cases done, cases per second, time left.
+
+    tqdm rather than a hand-written line: it is well kept, estimates the rate
+    and the time left, and stays silent when stderr is not a terminal.
+    """
 
     def __init__(self, total: int, enabled: bool, label: str):
-        self.total, self.enabled, self.label = total, enabled, label
-        self.done = 0
+        from tqdm.auto import tqdm
+
+        self.total, self.done = total, 0
         self.started = time.perf_counter()
-        self.last = -math.inf
+        self.bar = tqdm(total=total, unit="case", desc=f"  {label}", file=sys.stderr,
+                        mininterval=PROGRESS_INTERVAL, leave=True,
+                        disable=None if enabled else True)
 
     def update(self, count: int):
         self.done += count
-        now = time.perf_counter()
-        if self.enabled and (now - self.last >= PROGRESS_INTERVAL or self.done >= self.total):
-            self.last = now
-            elapsed = max(now - self.started, 1e-9)
-            rate = self.done / elapsed
-            left = (self.total - self.done) / rate if rate > 0 else math.inf
-            print(f"\r  {self.label}: {self.done:,}/{self.total:,} cases, {rate:,.0f} cases/s, "
-                  f"{elapsed:.0f} s elapsed, about {left:.0f} s left   ", end="",
-                  file=sys.stderr, flush=True)
-            if self.done >= self.total:
-                print(file=sys.stderr, flush=True)
+        self.bar.update(count)
+        if self.done >= self.total:
+            self.bar.close()
 
 
 def _tasks(conditions: dict, batch: int) -> list:
