@@ -32,7 +32,7 @@ import numpy as np
 from .layout import MODES, output_columns, state_columns
 
 __all__ = ["trajectory_columns", "column_unit", "check_out_dir", "check_output_file",
-           "result_dir", "atomic_write_text", "write_csv", "to_json", "replacing", "ResultWriter",
+           "result_dir", "atomic_write_text", "write_csv", "jsonable", "to_json", "replacing", "ResultWriter",
            "read_result", "versions",
            "CSV_NAME", "NPZ_NAME", "JSON_NAME", "UNITS", "MODE_CODES"]
 
@@ -218,19 +218,24 @@ def _json_default(value):
     return str(value)
 
 
+def jsonable(v):
+    """``v`` with arrays as lists, NumPy scalars as Python numbers and NaN/inf as None."""
+    if isinstance(v, dict):
+        return {str(k): jsonable(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [jsonable(x) for x in v]
+    if isinstance(v, np.ndarray):
+        return jsonable(v.tolist())
+    if isinstance(v, (float, np.floating)):
+        return float(v) if np.isfinite(v) else None
+    if isinstance(v, np.integer):
+        return int(v)
+    return v
+
+
 def to_json(data) -> str:
     """JSON text of ``data`` (arrays as lists, NaN and inf as null: strict JSON)."""
-    def clean(v):
-        if isinstance(v, dict):
-            return {str(k): clean(x) for k, x in v.items()}
-        if isinstance(v, (list, tuple)):
-            return [clean(x) for x in v]
-        if isinstance(v, np.ndarray):
-            return clean(v.tolist())
-        if isinstance(v, (float, np.floating)):
-            return float(v) if np.isfinite(v) else None
-        return v
-    return json.dumps(clean(data), indent=2, default=_json_default, allow_nan=False)
+    return json.dumps(jsonable(data), indent=2, default=_json_default, allow_nan=False)
 
 
 def _csv_formatter(columns):

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..results import atomic_write_text, replacing
 from .build import _safe
 from .classify import CLASSES
 from .statistics import _slope_bins, CONFIDENCE, EnvelopeResult, wilson_interval
@@ -26,6 +27,16 @@ _COLOURS = {"stable": "#b8c4cc", "tip_over": "#d62728", "stroke": "#ff7f0e",
 #: Heading bins of the boundary plot: direction of travel against the fall line (deg).
 _HEADINGS = (("downhill", 0.0, 45.0), ("across", 45.0, 135.0), ("uphill", 135.0, 180.0))
 
+
+
+def _save(fig, path):
+    """Write ``fig`` to ``path`` atomically (no half-written PNG) and close it."""
+    import matplotlib.pyplot as plt   # the backend is chosen by plot_envelope
+
+    with replacing(path) as tmp:
+        fig.savefig(tmp, dpi=110, format="png")
+    plt.close(fig)
+    return path
 
 def _logistic_fit(a, b, y, ridge=LOGISTIC_RIDGE, iterations=50):
     """Quadratic logistic regression of y on (a, b) by Newton's method with a ridge.
@@ -151,9 +162,7 @@ def _plot_boundary(plt, context: dict, files: dict):
     fig.suptitle(f"{st.name}: outcome of {result.n:,} touchdowns; line: P(stable) = 0.5 "
                  "(quadratic logistic fit)", fontsize=10)
     fig.tight_layout(rect=(0, 0.05, 1, 0.96))
-    files["boundary"] = out / f"{name}.png"
-    fig.savefig(files["boundary"], dpi=110)
-    plt.close(fig)
+    files["boundary"] = _save(fig, out / f"{name}.png")
 
 
 def _plot_pstable(plt, context: dict, files: dict):
@@ -186,14 +195,12 @@ def _plot_pstable(plt, context: dict, files: dict):
     ax.legend(fontsize=8)
     ax.set_title(f"{st.name}: P(stable) by slope", fontsize=10)
     fig.tight_layout()
-    files["pstable"] = out / f"{name}_pstable.png"
-    fig.savefig(files["pstable"], dpi=110)
-    plt.close(fig)
+    files["pstable"] = _save(fig, out / f"{name}_pstable.png")
     table = ["heading,slope_lo_deg,slope_hi_deg,stable,cases,p,low,high"]
     table += [f"{g},{a:.4g},{b:.4g},{k},{n},{e:.4f},{lw:.4f},{hg:.4f}"
               for g, a, b, k, n, e, lw, hg in rows]
     files["pstable_csv"] = out / f"{name}_pstable.csv"
-    files["pstable_csv"].write_text("\n".join(table) + "\n")
+    atomic_write_text(files["pstable_csv"], "\n".join(table) + "\n")
 
 
 def _plot_distributions(plt, context: dict, files: dict):
@@ -218,6 +225,4 @@ def _plot_distributions(plt, context: dict, files: dict):
         ax.legend(fontsize=8)
     fig.suptitle(f"{st.name}: distributions over {result.n:,} cases", fontsize=10)
     fig.tight_layout()
-    files["distributions"] = out / f"{name}_distributions.png"
-    fig.savefig(files["distributions"], dpi=110)
-    plt.close(fig)
+    files["distributions"] = _save(fig, out / f"{name}_distributions.png")

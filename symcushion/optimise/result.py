@@ -5,13 +5,13 @@ Owns :class:`DesignResult`. It must not solve or evaluate.
 from __future__ import annotations
 
 import json
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..results import atomic_write_text, jsonable
 from .spec import Evaluation
 
 if TYPE_CHECKING:  # the problem module imports this one
@@ -88,7 +88,7 @@ class DesignResult:
 
     def to_dict(self) -> dict:
         pb = self.problem
-        return _jsonable(dict(
+        return jsonable(dict(
             study=self.meta.get("name"),
             objective_kind=pb.objective_kind,
             objective=self.evaluation.objective,
@@ -118,20 +118,5 @@ class DesignResult:
         path = Path(path)
         if path.parent and not path.parent.exists():
             path.parent.mkdir(parents=True)
-        path.write_text(json.dumps(self.to_dict(), indent=2, ensure_ascii=False) + "\n")
+        atomic_write_text(path, json.dumps(self.to_dict(), indent=2, ensure_ascii=False) + "\n")
         return path
-
-
-def _jsonable(obj):
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
-    if isinstance(obj, (np.floating, float)):
-        value = float(obj)
-        return value if math.isfinite(value) else None
-    if isinstance(obj, (np.integer,)):
-        return int(obj)
-    return obj
