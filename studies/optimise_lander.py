@@ -35,8 +35,8 @@ def histories(result):
     stroke over the legs (m) of each scenario at the optimum."""
     problem = result.problem
     out = {}
-    for scenario in problem.scenarios:
-        traj = simulate(scenario.scene, x0=scenario.x0, p=result.p)
+    for k, scenario in enumerate(problem.scenarios):
+        traj = simulate(scenario.scene, x0=scenario.x0, p=problem.step_params(k, result.theta))
         stroke = np.nan_to_num(-traj.stroke).max(axis=1)
         out[scenario.name] = (traj.t, traj.acceleration[:, 2] - scenario.scene.gravity[2], stroke)
     return out

@@ -244,6 +244,12 @@ class DesignProblem(_Constraints, _GradientCheck):
         """Full parameter vector p (``param_names``) of design values θ (SI)."""
         return self.p_fixed + self._map @ np.asarray(theta, dtype=float)
 
+    def step_params(self, k: int, theta) -> np.ndarray:
+        """The ``p`` of scenario ``k``'s ``touchdown_step`` at design θ: the legs' curve
+        parameters (:meth:`p_of`), then that scenario's own μ, gravity, mass and inertia."""
+        model = self.models[k]
+        return np.concatenate([self.p_of(theta), model.default_p[model.params.n_leg_params:]])
+
     # -- evaluation -------------------------------------------------------------
     @property
     def n_variables(self) -> int:
