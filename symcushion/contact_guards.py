@@ -1,7 +1,7 @@
 """Guarded primitives and cone helpers shared by the contact steps (Khvostov 1976, §1).
 
 This module owns the branch-free building blocks of the contact steps:
-division, square root, norm and unit vector guarded so that the branch an
+division, square root, norm and unit vector guarded so that the branch a
 ``casadi.if_else`` does not take can produce neither NaN nor inf, in values
 or in derivatives (SX evaluates, and differentiates, both branches); the
 friction cone (1.4)-(1.5) as a value, a distance and a projection; and the

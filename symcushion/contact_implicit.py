@@ -284,6 +284,11 @@ def implicit_step(P0, Dp, n, l, mu, u0, friction):
     least slip |g| is taken (docs/contact.md, "Selection rule"). Stick wins
     when the trial force is inside the cone; lift-off only when no
     solution exists.
+
+    Arguments and returned dict as :func:`symcushion.contact.contact_step_expr`
+    after its conversion: P0, n, l, u0 (3, 1), Dp (3, 3) and mu (1, 1)
+    ``casadi.SX``, in N, m and N/m; ``k`` holds the slip g (3, 1), m.
+    `friction` False builds the mu = 0 step: lam = 0 only, no quartic.
     """
     # 1. Stick trial.
     P_t = P0 + ca.mtimes(Dp, l)  # (1.3) with delta = l
