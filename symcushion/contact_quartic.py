@@ -4,7 +4,7 @@ This module owns one numerical kernel: the real roots λ ≥ 0 of a polynomial
 of degree at most four, Q(λ) = Σ_k Q_k λ^k, as a fixed list of candidates
 computed by a closed form (Ferrari's resolvent cubic) and polished by Newton
 steps, with no data-dependent control flow. It knows nothing about contact,
-friction or forces: the caller (``symcushion.contact``) forms the
+friction or forces: the caller (``symcushion.contact_implicit``) forms the
 coefficients, validates each candidate against its own equation and chooses
 among them. It must not decide which root is physical.
 
