@@ -35,6 +35,8 @@ import math
 
 import casadi as ca
 
+from .contact_guards import TINY, safe_div, safe_sqrt
+
 __all__ = ["POLISH_STEPS", "quartic_roots"]
 
 # Newton steps per candidate after the closed form. One reaches round-off
@@ -47,21 +49,11 @@ POLISH_STEPS = 4
 # closed form placed well): Newton steps from a start where Q is flat are
 # clipped to it, so that Q(x) cannot overflow.
 X_MAX = 4.0
-# Below this, |x| is taken as 0 in the guarded divisions and roots of this
-# module (same role as contact.TINY).
-_TINY = 1e-300
-
-
-def _div(a, b):
-    """a/b, and 0 where |b| <= _TINY; the untaken branch divides by 1."""
-    ok = ca.fabs(b) > _TINY
-    return ca.if_else(ok, a / ca.if_else(ok, b, 1.0), 0.0)
-
-
-def _sqrt(x):
-    """sqrt(max(x, 0)), with a finite derivative at 0 (guarded)."""
-    ok = x > _TINY
-    return ca.if_else(ok, ca.sqrt(ca.if_else(ok, x, 1.0)), 0.0)
+# The guarded division and square root are those of the contact step
+# (contact_guards: |x| <= TINY is taken as 0, the untaken branch is finite).
+_TINY = TINY
+_div = safe_div
+_sqrt = safe_sqrt
 
 
 def _cbrt(x):
