@@ -9,7 +9,7 @@ the :class:`~symcushion.checks.Finding` it returns live in
 ``symcushion.checks``.
 
 It only inspects: it never changes a state and never drives the simulation
-(``symcushion.simulate`` does, and feeds it). docs/checks.md lists every
+(``symcushion.driver`` does, and feeds it). docs/checks.md lists every
 check with its tolerance and its test.
 """
 from __future__ import annotations

@@ -2,7 +2,7 @@
 
 This module owns the arrays a user reads (positions, forces, angles, modes,
 per time point) and how they are derived from the state x and output y of
-``touchdown_step`` (layout of ``symcushion.simulate``). It must not run the
+``touchdown_step`` (named fields of ``symcushion.layout``). It must not run the
 time loop (``symcushion.driver``) nor format files (``symcushion.results``);
 it calls them for ``load``, ``save_csv`` and ``save_npz``.
 """
