@@ -15,7 +15,7 @@ explicit stability limit. This module owns those checks:
   share :class:`Finding` and the geometry helpers of this module.
 
 It only inspects: it never changes a scene, a state or a step, and it does
-not drive the simulation (``symcushion.simulate`` does, and calls it).
+not drive the simulation (``symcushion.driver`` does, and calls it).
 docs/checks.md lists every check with its tolerance and its test.
 """
 from __future__ import annotations
