@@ -634,12 +634,15 @@ class CachedBuild:
     fresh: bool
 
 
-def compile_cached(f: ca.Function, source_name: str, library_name: str, cache_dir: Path,
-                   stem: str, note: str | None = None) -> CachedBuild:
+def compile_cached(f, source_name: str, library_name: str, cache_dir: Path,
+                   stem: str, note: str | None = None, cflags=CFLAGS) -> CachedBuild:
     """Generate C for ``f`` and compile it once per fingerprint into ``cache_dir``.
 
-    The source is fingerprinted with the flags (:data:`CFLAGS`,
-    :data:`WARNINGS`) and the compiler and built into
+    ``f`` is a ``casadi.Function`` or a sequence of them, generated into the
+    one source (e.g. a Function and its ``jac_`` Jacobian, the symbol
+    ``casadi.external`` looks for). The source is fingerprinted with the
+    flags (``cflags``, default :data:`CFLAGS`, plus :data:`WARNINGS`) and
+    the compiler and built into
     ``cache_dir/<stem>-<fingerprint>/`` unless that folder already holds the
     library, so repeated runs, tests and Dask workers reuse one build and two
     different Functions never share a path (a process cannot load two
@@ -653,10 +656,11 @@ def compile_cached(f: ca.Function, source_name: str, library_name: str, cache_di
                                 f"{library_name} runs compiled code only.")
     with tempfile.TemporaryDirectory(prefix="symcushion-cache-") as tmp:
         cg = ca.CodeGenerator(source_name, dict(CODEGEN_OPTIONS, with_header=False))
-        cg.add(f)
+        for one in ([f] if isinstance(f, ca.Function) else f):
+            cg.add(one)
         cg.generate(tmp + os.sep)
         source = (Path(tmp) / source_name).read_bytes()
-    flags = [*CFLAGS, *WARNINGS]
+    flags = [*cflags, *WARNINGS]
     digest = hashlib.sha256(source + " ".join(flags).encode() + cc.encode()).hexdigest()
     folder = Path(cache_dir) / f"{stem}-{digest[:16]}"
     library = folder / library_name

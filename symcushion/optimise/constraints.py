@@ -85,11 +85,32 @@ class _Constraints:
         self.ubg = np.concatenate([np.full(b.stop - b.start, b.upper) for b in blocks])
         self._fg = ca.Function("design_fg", [self.nlp["x"]], [self.nlp["f"], g], ["x"],
                                ["f", "g"])
-        self._outputs = ca.Function(
-            "design_outputs", [w], [ca.vertcat(*[ca.vertcat(
-                ca.vec(m["acc"]), *[ca.vec(d) for d in m["strokes"]],
-                *[ca.vec(b) for b in m["betas"]], *[ca.vec(c) for c in m["gammas"]],
-                ca.vec(m["tilt"]), m["v_up"]) for m in self._measure])], ["w"], ["y"])
+        self._outputs_expr = ca.vertcat(*[ca.vertcat(
+            ca.vec(m["acc"]), *[ca.vec(d) for d in m["strokes"]],
+            *[ca.vec(b) for b in m["betas"]], *[ca.vec(c) for c in m["gammas"]],
+            ca.vec(m["tilt"]), m["v_up"]) for m in self._measure])
+        self._outputs = ca.Function("design_outputs", [w], [self._outputs_expr], ["w"], ["y"])
+
+    def use_compiled(self, cache_dir=None, progress=False, **options):
+        """Evaluate the rollouts and their Jacobian in compiled C from now on.
+
+        Builds (or reuses from ``cache_dir``) the library of
+        :func:`symcushion.compiled_nlp.compile_design`; ``solve``, ``fg``,
+        ``evaluate`` and ``check_gradient`` then use it. ``options`` go to
+        ``compile_design`` (threads, cflags, directions, client). Returns the
+        :class:`~symcushion.compiled_nlp.CompiledDesign`.
+        """
+        from ..compiled_nlp import compile_design  # the C path needs gcc: loaded on demand
+        built = compile_design(self, cache_dir, progress=progress, **options)
+        self._compiled_nlp, self._fg, self._outputs = built.nlp, built.fg, built.outputs
+        return built
+
+    def _compile_for_solve(self, compiled, cache_dir, progress) -> dict:
+        """:meth:`use_compiled` if ``compiled``; its timings for the result (s)."""
+        if not compiled:
+            return {}
+        built = self.use_compiled(cache_dir, progress=progress)
+        return {f"compiled_{k}_seconds": v for k, v in built.seconds.items()}
 
     def _scenario_measures(self, p):
         """Per scenario, the measures of every rollout step as expressions of the design.
@@ -98,6 +119,7 @@ class _Constraints:
         the vertical specific force and of the axial strokes, which scale the objective.
         """
         self._measure = []
+        self._rollout_calls = []   # (X, Y) of each scenario: compiled_nlp replaces them
         peak_exprs, stroke_exprs = [], []
         for s, model in zip(self.scenarios, self.models):
             scene = s.scene
@@ -105,6 +127,7 @@ class _Constraints:
             # the design rows of p, then this scenario's own μ, gravity and body
             p_full = ca.vertcat(p, ca.DM(model.default_p[model.params.n_leg_params:]))
             X, Y = model.rollout(scene.steps)(ca.DM(s.x0), p_full, scene.dt)
+            self._rollout_calls.append((X, Y))
             per_step = measures_function(scene).map(scene.steps).call(
                 dict(x=X, y=Y, p=ca.repmat(p_full, 1, scene.steps)))
             acc = ca.mtimes(ca.DM(up).T, per_step["specific_force"])

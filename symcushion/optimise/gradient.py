@@ -58,8 +58,9 @@ class _GradientCheck:
         """
         theta = self.initial if theta is None else np.asarray(theta, dtype=float)
         x = self.scaled(theta)
-        jac = ca.Function("design_jac", [self.nlp["x"]],
-                          [ca.jacobian(ca.vertcat(self.nlp["f"], self.nlp["g"]), self.nlp["x"])])
+        nlp = getattr(self, "_compiled_nlp", self.nlp)   # the compiled NLP once in use
+        jac = ca.Function("design_jac", [nlp["x"]],
+                          [ca.jacobian(ca.vertcat(nlp["f"], nlp["g"]), nlp["x"])])
         J = np.asarray(jac(x), dtype=float)
 
         def differences(h):

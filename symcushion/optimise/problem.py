@@ -418,7 +418,8 @@ class DesignProblem(_Constraints, _GradientCheck):
         return [v for v in self.evaluate(theta).violations if "shape constraint" not in v]
 
     def solve(self, ipopt: dict | None = None, progress: bool | Callable = False,
-              theta0=None, feasible_start: bool = True) -> "DesignResult":
+              theta0=None, feasible_start: bool = True, compiled: bool = False,
+              cache_dir=None) -> "DesignResult":
         """Solve the design NLP with Ipopt (``casadi.nlpsol``).
 
         Parameters
@@ -435,7 +436,13 @@ class DesignProblem(_Constraints, _GradientCheck):
             :meth:`feasible_start` (docs/optimise.md: Ipopt started outside
             the limits takes large restoring steps into stiff designs where
             it stalls).
+        compiled : bool
+            Evaluate the rollouts and their Jacobian in C, built once and
+            cached in ``cache_dir`` (:meth:`use_compiled`).
+        cache_dir : str or Path, optional
+            Folder of compiled builds (default ``build/design``).
         """
+        build = self._compile_for_solve(compiled, cache_dir, progress is True)
         options = dict(IPOPT_DEFAULTS)
         options.update(ipopt or {})
         theta0 = self.initial if theta0 is None else np.asarray(theta0, dtype=float)
@@ -466,7 +473,7 @@ class DesignProblem(_Constraints, _GradientCheck):
                 progress(entry)
 
         callback = _IterationCallback(x0.size, self.lbg.size, on_iteration)
-        solver = ca.nlpsol("design", "ipopt", self.nlp,
+        solver = ca.nlpsol("design", "ipopt", getattr(self, "_compiled_nlp", self.nlp),
                            {"ipopt": options, "print_time": False,
                             "iteration_callback": callback})
         lbx = np.concatenate([self.lower / self.scale, [0.0]])   # peaks are ≥ 0
@@ -492,7 +499,7 @@ class DesignProblem(_Constraints, _GradientCheck):
                          jacobian_proc_seconds=float(stats.get("t_proc_nlp_jac_g", math.nan)),
                          jacobian_evaluations=int(stats.get("n_call_nlp_jac_g", 0)),
                          constraint_wall_seconds=float(stats.get("t_wall_nlp_g", math.nan)),
-                         constraint_evaluations=int(stats.get("n_call_nlp_g", 0))),
+                         constraint_evaluations=int(stats.get("n_call_nlp_g", 0)), **build),
             meta=dict(start_scale=scale_c,
                       start_design=dict(zip(self.var_names, map(float, theta_start)))))
 

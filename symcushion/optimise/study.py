@@ -55,9 +55,10 @@ class Study:
     ipopt: dict
     source: str = ""
     description: str = ""
+    compiled: bool = False
 
     def solve(self, progress=False) -> DesignResult:
-        result = self.problem.solve(ipopt=self.ipopt, progress=progress)
+        result = self.problem.solve(ipopt=self.ipopt, progress=progress, compiled=self.compiled)
         result.meta.update(name=self.name, source=self.source, description=self.description)
         return result
 
@@ -145,9 +146,10 @@ def study_from_dict(data: dict, source: str = "<dict>", base_dir=".") -> Study:
                     deceleration=lim.get("deceleration", None, positive=True))
     lim.finish()
 
-    ipopt = {}
+    ipopt, compiled = {}, False
     if top.has("solver"):
         so = top.get("solver", kind="table")
+        compiled = so.get("compile", False, kind="bool")   # C rollouts (compiled_nlp)
         if so.has("max_iter"):
             ipopt["max_iter"] = so.get("max_iter", kind="int")
         if so.has("tol"):
@@ -167,7 +169,8 @@ def study_from_dict(data: dict, source: str = "<dict>", base_dir=".") -> Study:
         problem = DesignProblem(scenarios, variables, limits, objective, shapes)
     except (ValueError, TypeError) as exc:
         raise ValueError(f"{source}: {exc}") from None
-    return Study(name=name, problem=problem, ipopt=ipopt, source=source, description=description)
+    return Study(name=name, problem=problem, ipopt=ipopt, source=source, description=description,
+                 compiled=compiled)
 
 
 def _smooth_tunable(scene: Scene, kink_width, rate_width):
