@@ -57,6 +57,7 @@ from .contact_implicit import (  # noqa: F401 (CANCEL_TOL, FINAL_*, ROOT_SCALE_R
     ROOT_SCALE_RANGE,
     ROOT_TOL,
     implicit_step,
+    stick_trial,
 )
 from .contact_paper import paper_step
 from .contact_robust import robust_step
@@ -201,7 +202,68 @@ def _build(method, friction):
 
 
 @functools.lru_cache(maxsize=None)
+def _build_stick(friction):
+    """The implicit step's cheap part: the stick flag and the stick outputs.
+
+    Two SX Functions with the step's inputs: ``..._stick_test`` -> ``stick``
+    (1 when the trial force sticks), and ``..._stick`` -> the step's outputs
+    for a sticking foot (delta = l, P = P_t, k = 0, contact = 1). Each output
+    is written as the step writes it, ``if_else(stick, value, other)`` with
+    ``other`` an input of the branch that the caller feeds zeros, so that
+    CasADi cannot simplify the sum away and a -0.0 in `l` comes out +0.0 as
+    from the full step.
+    """
+    f = _build("implicit", friction)
+    P0, Dp, n, l, mu, u0 = f.sx_in()
+    mu_eff = mu if friction else ca.SX(0.0)  # the frictionless step ignores mu
+    P_t, _, _, _, stick = stick_trial(P0, Dp, n, l, mu_eff)
+    test = ca.Function(f"{f.name()}_stick_test", [P0, Dp, n, l, mu, u0], [stick],
+                       INPUT_NAMES, ["stick"])
+    other = ca.SX.sym("other", 10)  # zeros from the caller, never taken
+    values = [l, P_t, ca.SX.zeros(3, 1), ca.SX(1.0)]
+    outs, start = [], 0
+    for value in values:
+        size = value.numel()
+        outs.append(ca.if_else(stick, value, other[start:start + size]))
+        start += size
+    branch = ca.Function(f"{f.name()}_stick", [P0, Dp, n, l, mu, u0, other], outs,
+                         INPUT_NAMES + ["other"], OUTPUT_NAMES)
+    return test, branch
+
+
+def _build_conditional(friction):
+    """The implicit step that runs its slip part only when the foot does not stick.
+
+    An MX Function with the step's inputs and outputs: it evaluates the stick
+    test of :func:`_build_stick` and then, through ``Function.conditional``,
+    either the stick branch (a few dozen operations) or the full step of
+    :func:`_build`. Both branches give the full step's values bit for bit,
+    and derivatives are those of the branch taken (the stick flag is
+    piecewise constant).
+    """
+    f = _build("implicit", friction)
+    test, stick_branch = _build_stick(friction)
+    sym = [ca.MX.sym(name, f.size_in(i)) for i, name in enumerate(INPUT_NAMES)]
+    # Forward-mode AD, as the SX step's own Jacobian: reverse mode (CasADi's
+    # choice for an MX Function with fewer outputs than inputs) sums in
+    # another order and moves the Jacobian of ill-conditioned slips by up to
+    # 4e-10 relative.
+    opts = {"ad_weight": 0, "ad_weight_sp": 0}
+    # One signature for both branches: the full step ignores `other`.
+    other = ca.MX.sym("other", 10)
+    full = ca.Function(f"{f.name()}_full", sym + [other], f.call(sym), INPUT_NAMES + ["other"],
+                       OUTPUT_NAMES, opts)
+    # branch index 0 (slip, lift-off or free): the full step; 1 (stick): the stick branch
+    switch = ca.Function.conditional(f"{f.name()}_switch", [full, stick_branch], full, opts)
+    out = switch(test(*sym), *sym, ca.MX.zeros(10, 1))
+    return ca.Function(f"{f.name()}_call", sym, out, INPUT_NAMES, OUTPUT_NAMES,
+                       dict(opts, never_inline=True))
+
+
+@functools.lru_cache(maxsize=None)
 def _build_call(method, friction):
+    if method == "implicit" and friction:  # at mu = 0 the trial never sticks (T_t > 0)
+        return _build_conditional(friction)
     f = _build(method, friction)
     sym = f.sx_in()
     # never_inline: an SX graph calling this keeps one call node per call, so
@@ -218,7 +280,10 @@ def contact_step_call(method, P0, Dp, n, l, mu, u0, *, friction=None):
     ``contact_step_<method>[_frictionless]_call`` instead of the step's
     instructions: a graph with several legs and passes contains (and its
     generated C compiles) the step once. Derivatives through the call are
-    CasADi's derivative Functions of the call node.
+    CasADi's derivative Functions of the call node. For ``'implicit'`` with
+    friction the called Function evaluates the slip part only when the
+    trial force does not stick (:func:`_build_conditional`); its values and
+    Jacobian equal the full step's to the bit.
     """
     _check_method(method)
     if friction is None:

@@ -17,6 +17,7 @@ from .contact_guards import CONE_TOL, TINY, lift_off, safe_div, safe_sqrt, sign_
 from .contact_quartic import quartic_roots
 
 __all__ = [
+    "stick_trial",
     "CANCEL_TOL",
     "DET_TOL",
     "FINAL_CLIP",
@@ -250,6 +251,24 @@ def _trial_direction(P_t, n):
     return N_t, T_t, t1
 
 
+def stick_trial(P0, Dp, n, l, mu):
+    """The stick trial of the implicit step: (P_t, N_t, T_t, t1, stick).
+
+    P_t = P0 + Dp l (1.3) with delta = l, its normal part N_t = n.P_t, its
+    tangential magnitude T_t and direction t1 (:func:`_trial_direction`), and
+    the flag stick: P_t loads the foot and lies inside the cone (1.4).
+    Shared by :func:`implicit_step` and by the conditional wrapper of
+    ``symcushion.contact`` (which runs the slip part only when this flag is
+    false), so that both take the same branch bit for bit.
+    """
+    P_t = P0 + ca.mtimes(Dp, l)  # (1.3) with delta = l
+    N_t, T_t, t1 = _trial_direction(P_t, n)
+    # (1.4) as T_t <= mu N_t rather than C(P_t) <= 0 (1.5): at mu = 0,
+    # C = |P_tau|^2 loses any |P_tau| below 1e-8 |P_t| to round-off.
+    stick = ca.logic_and(T_t <= mu * N_t, N_t > 0)
+    return P_t, N_t, T_t, t1, stick
+
+
 def _tangent_stiffness(Dp, n, t1):
     """The tangent frame (t1, t2 = n x t1) and Dp in it: K (2 x 2), a = n.Dp t_i, |K|_F.
 
@@ -291,11 +310,7 @@ def implicit_step(P0, Dp, n, l, mu, u0, friction):
     `friction` False builds the mu = 0 step: lam = 0 only, no quartic.
     """
     # 1. Stick trial.
-    P_t = P0 + ca.mtimes(Dp, l)  # (1.3) with delta = l
-    N_t, T_t, t1 = _trial_direction(P_t, n)
-    # (1.4) as T_t <= mu N_t rather than C(P_t) <= 0 (1.5): at mu = 0,
-    # C = |P_tau|^2 loses any |P_tau| below 1e-8 |P_t| to round-off.
-    stick = ca.logic_and(T_t <= mu * N_t, N_t > 0)
+    P_t, N_t, T_t, t1, stick = stick_trial(P0, Dp, n, l, mu)
 
     # 2. Slip in the tangent frame (t1, t2) of the trial force, p = (T_t, 0).
     t2, K11, K12, K21, K22, a1, a2, K_norm = _tangent_stiffness(Dp, n, t1)
