@@ -36,8 +36,9 @@ bouncing and rocking (no slip) from sliding.
 Output: ``figures/event_order.csv`` (one row per scene, variant and Δt),
 ``figures/event_order.png``, and the sections "Events: measured" and
 "Events: controls" of ``docs/speed-vs-error.md``. Run from the repository
-root: ``python studies/event_order.py`` (builds are cached in
-``build/event_order/``); ``--controls`` runs only the control runs, ``--only
+root: ``python studies/event_order.py`` (2 min on the shared 2-core
+machine when it is quiet, 8 min with other jobs running, plus gcc the first
+time; builds are cached in ``build/event_order/``); ``--controls`` runs only the control runs, ``--only
 TEXT`` only the cases whose scene or variant contains TEXT (no output
 written).
 """
