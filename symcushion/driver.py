@@ -12,6 +12,7 @@ is ``symcushion.touchdown``) nor format files (``symcushion.results``).
 """
 from __future__ import annotations
 
+import dataclasses
 import sys
 import time
 import warnings
@@ -160,6 +161,10 @@ def _check_arguments(scene, model, x0, p, adaptive, eps, stability, monitor, sin
         raise TypeError(f"`scene` must be a Scene, got {type(scene).__name__} {scene!r}; load a "
                         "file with symcushion.scene.load_scene(path).")
     model = model or build_model(scene)
+    if model.scene is not scene:
+        # the run's Δt and duration are the given scene's, not those of the scene
+        # the model was built from (they do not enter the step's graph)
+        model = dataclasses.replace(model, scene=scene)
     x0 = initial_state(scene) if x0 is None else np.asarray(x0, dtype=float)
     if x0.shape != (model.nx,):
         raise ValueError(f"`x0` must have shape ({model.nx},), got {x0.shape}.")

@@ -236,3 +236,24 @@ def test_trajectory_files(tmp_path):
     columns = list(data["columns"])
     position = data["data"][:, [columns.index(f"body_position_{a}_m") for a in "xyz"]]
     np.testing.assert_array_equal(position, traj.position)
+
+
+def test_simulate_runs_the_given_scene_with_a_model_built_from_another():
+    """Δt and duration are those of the scene passed, not of the model's own scene."""
+    from symcushion import build_model, load_scene, simulate
+
+    scene = load_scene(ROOT / "studies" / "fig3.toml").with_(duration=0.02)
+    model = build_model(scene)
+    shorter = scene.with_(duration=0.01, dt=5e-4)
+    traj = simulate(shorter, model=model, monitor=False)
+    assert traj.t[-1] == pytest.approx(0.01) and traj.info["dt"] == 5e-4
+    assert traj.t.size == 21
+
+
+def test_symcushion_simulate_is_callable_after_the_submodule_is_imported():
+    import symcushion
+    import symcushion.simulate  # noqa: F401  (binds the package attribute to the module)
+
+    scene = symcushion.load_scene(ROOT / "studies" / "fig3.toml").with_(duration=0.005)
+    traj = symcushion.simulate(scene, monitor=False)
+    assert traj.t.size == 6
