@@ -59,6 +59,7 @@ from symcushion.layout import state_layout
 from symcushion.scene import read_toml, scene_from_dict
 from symcushion.simulate import build_model, equilibrium_state, simulate
 from symcushion.studies import speed_vs_error as sve
+from symcushion.studies.speed_vs_error.csv_io import csv_cell
 
 ROOT = Path(__file__).resolve().parent.parent
 STUDIES = ROOT / "studies"
@@ -197,14 +198,6 @@ def orders(rows):
     return out
 
 
-def _cell(value):
-    if value is None:
-        return ""
-    if isinstance(value, (float, np.floating)):
-        return "" if not np.isfinite(value) else f"{float(value):.12g}"
-    return str(value)
-
-
 def _fmt(x, spec=".2e"):
     return "—" if x is None or not np.isfinite(x) else format(x, spec)
 
@@ -216,7 +209,7 @@ def write_csv(rows, path):
         writer = csv.writer(fh)
         writer.writerow(COLUMNS)
         for row in rows:
-            writer.writerow([_cell(row.get(c)) for c in COLUMNS])
+            writer.writerow([csv_cell(row.get(c)) for c in COLUMNS])
 
 
 STYLE = {"all events": ("k", "o"), "elastic": ("tab:blue", "s"), "stick": ("tab:orange", "^"),

@@ -13,7 +13,8 @@ import numpy as np
 from .grid import COLUMNS
 
 
-def _cell(value):
+def csv_cell(value):
+    """One CSV cell: empty for None or a non-finite number, 12 digits otherwise."""
     if value is None:
         return ""
     if isinstance(value, (float, np.floating)):
@@ -37,7 +38,7 @@ def write_csv(rows, path) -> None:
             if unknown:
                 raise ValueError(f"row has unknown column(s) {sorted(unknown)}; add them to "
                                  "COLUMNS.")
-            writer.writerow([_cell(row.get(c)) for c in COLUMNS])
+            writer.writerow([csv_cell(row.get(c)) for c in COLUMNS])
 
 
 def read_csv(path) -> list:
