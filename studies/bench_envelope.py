@@ -36,7 +36,7 @@ import numpy as np
 
 from symcushion import report
 from symcushion.envelope import (CLASSES, CONFIDENCE, build_envelope, case_params, classify,
-                                 evaluate, initial_states, load_study, run_batch, run_envelope,
+                                 evaluate, initial_states, load_study, reach, run_batch, run_envelope,
                                  sample_conditions, wilson_interval)
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -215,7 +215,8 @@ def _run_variant(base, variant, cases: dict, marginal: dict, threads: int) -> tu
         cpu, wall = _cpu(), time.perf_counter()
         x_end, summary = run_batch(library, x0, p, dt, threads if k == 0 else 1)
         cpu, wall = _cpu() - cpu, time.perf_counter() - wall
-        r = classify(summary, x_end, gravity, x0, study.limits, len(study.scene.legs))
+        r = classify(summary, x_end, gravity, x0, study.limits, len(study.scene.legs),
+                     reach(study.scene))
         r.update(cpu_per_case=cpu / x0.shape[1], wall=wall, load=load, build=build)
         out.append(r)
     n = len(cases["vertical_speed"])

@@ -232,7 +232,13 @@ def test_an_elastic_lander_rebounds(tmp_path):
     c = ev.evaluate(study, {"vertical_speed": [2.0, 0.3]}, cache_dir=tmp_path)
     assert c["class"][0] == "rebound" and c["rebound_speed"][0] > 1.0
     assert c["airborne_time"][0] > 0
-    assert c["class"][1] == "stable"
+    # the slow drop stays within every limit, but undamped springs without
+    # friction never bring it to rest: not stable unless the rest check is off
+    assert c["class"][1] == "moving" and c["final_motion"][1] > ev.DEFAULT_REST_SPEED
+    data["limits"]["rest_speed"] = False
+    c = ev.evaluate(ev.study_from_dict(data, "elastic"), {"vertical_speed": [0.3]},
+                    cache_dir=tmp_path)
+    assert c["class"][0] == "stable"
 
 
 def test_classify_precedence_and_margins():
@@ -254,6 +260,29 @@ def test_classify_precedence_and_margins():
     assert np.isclose(c["margin_stroke"][0], 0.5) and np.isclose(c["margin_stroke"][1], -0.5)
     assert np.isclose(c["max_tilt_deg"][2], 40.0)
     assert np.isclose(c["margin_deceleration"][2], 1 - 90 / 80)
+
+
+def test_classify_at_rest_counts_rotation_at_the_reach():
+    """A case within every limit is stable only when |v| + |ω|·reach ≤ rest_speed."""
+    n_legs = 1
+    summary = np.zeros((len(ev.SUMMARY), 3))
+    summary[list(ev.SUMMARY).index("touched")] = 1
+    x_end = np.zeros((ev.BODY_STATE + ev.LEG_STATE * n_legs, 3))
+    x_end[6] = 1.0                                       # upright quaternion
+    x_end[3] = [0.0, 0.04, 0.0]                          # centre-of-mass speed (m/s)
+    x_end[10] = [0.0, 0.0, 0.02]                         # body rate (rad/s)
+    gravity = np.tile([[0.0], [0.0], [-9.81]], (1, 3))
+    limits = ev.Limits(stroke=0.2, rest_speed=0.05)
+    c = ev.classify(summary, x_end, gravity, np.zeros_like(x_end), limits, n_legs, reach=2.0)
+    assert list(c["class"]) == ["stable", "stable", "stable"]
+    assert np.allclose(c["final_motion"], [0.0, 0.04, 0.04])
+    assert np.isclose(c["margin_moving"][2], 1 - 0.04 / 0.05)
+    c = ev.classify(summary, x_end, gravity, np.zeros_like(x_end), limits, n_legs, reach=3.0)
+    assert list(c["class"]) == ["stable", "stable", "moving"]
+    assert np.isclose(c["final_motion"][2], 0.06)
+    c = ev.classify(summary, x_end, gravity, np.zeros_like(x_end),
+                    ev.Limits(stroke=0.2, rest_speed=None), n_legs, reach=3.0)
+    assert list(c["class"]) == ["stable"] * 3
 
 
 def test_wilson_interval():
@@ -294,6 +323,9 @@ def _edit(raw, path, value):
     ("sampling.seed", -1, "sampling.seed"),
     ("limits.stroke", -0.1, "limits.stroke"),
     ("limits", {}, "at least one limit"),
+    ("limits.rest_speed", -0.05, "limits.rest_speed"),
+    ("limits.rest_speed", "slow", "limits.rest_speed"),
+    ("limits", {"rest_speed": 0.05}, "at least one limit"),
     ("obstacle", [{"type": "sphere", "center": [0, 0, -1], "radius": 1.0}],
      "type \"plane\""),
     ("study.clearence", 0.01, "unknown field(s) ['clearence']"),

@@ -18,7 +18,7 @@ from ..scene import Scene
 from ..touchdown import StepModel
 from .study import EnvelopeStudy
 
-__all__ = ["SUMMARY", "DECEL_FILTER_TIME", "initial_states", "envelope_function", "case_params"]
+__all__ = ["SUMMARY", "DECEL_FILTER_TIME", "initial_states", "reach", "envelope_function", "case_params"]
 
 #: Running extrema per case, the rows of ``envelope_case``'s ``summary``:
 #: max |δ_S| over legs with an axial element (m), max |β| and max |γ − γ₀|
@@ -99,6 +99,12 @@ def initial_states(study: EnvelopeStudy, conditions: dict) -> tuple:
         foot=[(pos + feet_rel[:, j]).T for j in legs], contact=[zeros for _ in legs],
         force_body=[np.zeros((3, n)) for _ in legs])
     return np.ascontiguousarray(x0), np.ascontiguousarray(gravity.T)
+
+
+def reach(scene: Scene) -> float:
+    """Largest distance of a foot at rest from the centre of mass (m), 0 without legs:
+    the lever arm of the at-rest check (``limits.rest_speed``)."""
+    return max((float(np.linalg.norm(leg.rest_foot)) for leg in scene.legs), default=0.0)
 
 
 def envelope_function(model: StepModel, steps: int | None = None) -> ca.Function:

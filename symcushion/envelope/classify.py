@@ -16,11 +16,11 @@ __all__ = ["CLASSES", "classify"]
 
 #: Outcome classes, in the order of precedence when a case fails several checks.
 CLASSES = ("stable", "tip_over", "stroke", "deflection", "deceleration", "rebound",
-           "no_touchdown")
+           "moving", "no_touchdown")
 
 
 def classify(summary: np.ndarray, x_end: np.ndarray, gravity: np.ndarray, x0: np.ndarray,
-             limits: Limits, n_legs: int) -> dict:
+             limits: Limits, n_legs: int, reach: float = 0.0) -> dict:
     """Measures, margins and the class of every case.
 
     A case is ``stable`` when it passes every given limit; otherwise its class
@@ -28,6 +28,15 @@ def classify(summary: np.ndarray, x_end: np.ndarray, gravity: np.ndarray, x0: np
     it ends the mission whatever else happened). ``no_touchdown`` marks a case
     whose feet never touched (raise ``duration`` or lower ``clearance``).
     Margins are 1 − value/limit: positive passes, 0 is on the limit.
+    ``moving`` marks a case that passes every other check but has not come to
+    rest: |v| + |ω|·``reach`` at the end exceeds ``limits.rest_speed``.
+
+    Parameters
+    ----------
+    reach : float
+        Largest distance of a foot at rest from the centre of mass (m): the
+        end motion |v| + |ω|·reach bounds the speed of every point of the
+        body within that distance.
 
     Returns
     -------
@@ -48,6 +57,7 @@ def classify(summary: np.ndarray, x_end: np.ndarray, gravity: np.ndarray, x0: np
         "airborne_time": S["airborne_time"], "first_contact_time": S["first_contact_time"],
         "min_height": S["min_height"],
         "final_speed": np.linalg.norm(xl.get(x_end, "velocity"), axis=0),
+        "final_rate": np.linalg.norm(xl.get(x_end, "angular_velocity"), axis=0),
         # along the ground: the slope frame's x and y
         "slide": np.linalg.norm((xl.get(x_end, "position") - xl.get(x0, "position"))[:2], axis=0),
         "feet_down": np.sum(contacts > 0.5, axis=0).astype(float),
@@ -59,7 +69,9 @@ def classify(summary: np.ndarray, x_end: np.ndarray, gravity: np.ndarray, x0: np
               ("deflection", "max_beta", limits.beta),
               ("deflection", "max_gamma", limits.gamma),
               ("deceleration", "peak_decel", limits.deceleration),
-              ("rebound", "rebound_speed", limits.rebound_speed))
+              ("rebound", "rebound_speed", limits.rebound_speed),
+              ("moving", "final_motion", limits.rest_speed))
+    out["final_motion"] = out["final_speed"] + out["final_rate"] * float(reach)
     for check, measure, limit in checks:
         if limit is None:
             continue

@@ -23,7 +23,7 @@ LOGISTIC_RIDGE = 1e-2
 #: Colours of the outcome classes in the plots.
 _COLOURS = {"stable": "#b8c4cc", "tip_over": "#d62728", "stroke": "#ff7f0e",
             "deflection": "#9467bd", "deceleration": "#1f77b4", "rebound": "#2ca02c",
-            "no_touchdown": "#000000"}
+            "moving": "#8c564b", "no_touchdown": "#000000"}
 #: Heading bins of the boundary plot: direction of travel against the fall line (deg).
 _HEADINGS = (("downhill", 0.0, 45.0), ("across", 45.0, 135.0), ("uphill", 135.0, 180.0))
 

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..scene import Scene
 from .build import _dask_batch, build_envelope, DEFAULT_CACHE, run_batch
-from .cases import case_params, initial_states, SUMMARY
+from .cases import case_params, initial_states, reach, SUMMARY
 from .classify import classify
 from .plots import plot_envelope
 from .sampling import sample_conditions
@@ -160,7 +160,8 @@ def run_envelope(study: EnvelopeStudy, out_dir=None, *, threads: int | None = No
         info = _run_dask(study, tasks, libraries, x0, conditions["mu"], p, x_end, summary, bar,
                          scheduler, workers, cache_dir)
     run_seconds = info.pop("compute_seconds", time.perf_counter() - started)
-    columns = classify(summary, x_end, gravity, x0, study.limits, len(scene.legs))
+    columns = classify(summary, x_end, gravity, x0, study.limits, len(scene.legs),
+                       reach(scene))
     timings = {"backend": backend, **info, "batch": study.batch,
                "build_seconds": round(build_seconds, 3), "run_seconds": round(run_seconds, 3),
                "cases_per_second": round(study.n / run_seconds, 1),
@@ -210,7 +211,8 @@ def evaluate(study: EnvelopeStudy, conditions: dict, *, threads: int = 1, cache_
     for friction, idx in _tasks(full, study.batch):
         x_end[:, idx], summary[:, idx] = run_batch(libraries[friction], x0[:, idx],
                                                    p[friction][:, idx], study.scene.dt, threads)
-    return classify(summary, x_end, gravity, x0, study.limits, len(study.scene.legs))
+    return classify(summary, x_end, gravity, x0, study.limits, len(study.scene.legs),
+                    reach(study.scene))
 
 
 def _run_dask(study, tasks, libraries, x0, mu, p, x_end, summary, bar, scheduler,

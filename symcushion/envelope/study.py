@@ -21,7 +21,8 @@ from ..obstacles import Plane
 from ..scene import Scene, _Table, read_toml, scene_from_dict
 from .sampling import MAX_SOBOL_DIMENSIONS
 
-__all__ = ["VARIABLES", "MAX_SLOPE_DEG", "DEFAULT_BATCH", "DEFAULT_CLEARANCE", "Range", "Limits",
+__all__ = ["VARIABLES", "MAX_SLOPE_DEG", "DEFAULT_BATCH", "DEFAULT_CLEARANCE", "DEFAULT_REST_SPEED",
+           "Range", "Limits",
            "EnvelopeStudy", "study_from_dict", "load_study"]
 
 #: Sampled touchdown conditions, in the order they take dimensions of the
@@ -51,6 +52,11 @@ MAX_SLOPE_DEG = 60.0
 DEFAULT_BATCH = 100
 #: Default lowest-foot clearance at t = 0 (m): touchdown within a few ms.
 DEFAULT_CLEARANCE = 1e-3
+#: Default `limits.rest_speed` (m/s): a case that is upright and within every
+#: limit but whose body still moves this fast at the end has not come to rest
+#: and is not counted as stable (class ``moving``). 5 cm/s: a settled lander
+#: creeps by far less (its feet stick), a rocking or sliding one by far more.
+DEFAULT_REST_SPEED = 0.05
 
 
 @dataclass(frozen=True)
@@ -128,6 +134,11 @@ class Limits:
         Peak specific force |a − g| (m/s²).
     rebound_speed : float
         Upward speed after the first contact (m/s).
+    rest_speed : float
+        At rest at the end: no point of the body within reach of its feet
+        moves faster than this, |v| + |ω|·reach ≤ ``rest_speed`` (m/s), where
+        reach is the largest distance of a foot at rest from the centre of
+        mass. Default :data:`DEFAULT_REST_SPEED`; None leaves the check out.
     """
 
     stroke: float | None = None
@@ -136,6 +147,7 @@ class Limits:
     tilt_deg: float | None = None
     deceleration: float | None = None
     rebound_speed: float | None = None
+    rest_speed: float | None = None
 
     def __post_init__(self):
         for f in dataclasses.fields(self):
@@ -147,7 +159,8 @@ class Limits:
                                  f"got {value!r}.")
         if self.tilt_deg is not None and self.tilt_deg >= 180:
             raise ValueError(f"`limits.tilt_deg` must be below 180°, got {self.tilt_deg!r}.")
-        if all(getattr(self, f.name) is None for f in dataclasses.fields(self)):
+        if all(getattr(self, f.name) is None for f in dataclasses.fields(self)
+               if f.name != "rest_speed"):
             raise ValueError("`limits`: give at least one limit (stroke, beta, gamma, tilt_deg, "
                              "deceleration, rebound_speed); without any every case is stable.")
 
@@ -328,9 +341,16 @@ def study_from_dict(data: dict, source: str = "<dict>") -> EnvelopeStudy:
 
     li = top.get("limits", kind="table")
     try:
+        rest = li.data.get("rest_speed", DEFAULT_REST_SPEED)
+        li.used.add("rest_speed")
+        if rest is False:
+            rest = None
+        elif isinstance(rest, bool) or not isinstance(rest, (int, float)) or not rest > 0:
+            raise li.error("rest_speed", rest, "a speed > 0 in m/s, or false to leave the "
+                           "at-rest check out")
         limits = Limits(**{k: li.get(k, None, positive=True) for k in
                            ("stroke", "beta", "gamma", "tilt_deg", "deceleration",
-                            "rebound_speed")})
+                            "rebound_speed")}, rest_speed=rest)
     except ValueError as exc:
         raise ValueError(f"{source}: {exc}") from None
     li.finish()
