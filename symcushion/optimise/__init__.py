@@ -38,7 +38,7 @@ curves are tuned here) and §3 (the touchdown simulation differentiated here).
 """
 from .spec import (OBJECTIVES, VIOLATION_TOL, Scenario, DesignVariable, CurveShape, Limits,
                    Evaluation)
-from .constraints import ONSET_SLOPE_FRACTION, SHAPE_GRID
+from .space import ONSET_SLOPE_FRACTION, SHAPE_GRID
 from .gradient import FD_STEP, ROW_FLOOR, FD_AGREEMENT
 from .problem import (IPOPT_DEFAULTS, FEASIBLE_SCALE_MAX, FEASIBLE_BISECTIONS, FEASIBLE_MARGIN,
                       DesignProblem)

@@ -2,9 +2,8 @@
 
 Owns the epigraph form of the peak (one smooth row per step and scenario),
 the limit rows read from ``touchdown_measures`` of every rollout step, their
-scaling, and the shape rows of the tuned curves (monotone loading, onset
-slope, unloading below loading). It must not choose variables, call Ipopt
-or read study files.
+scaling; the shape rows of the tuned curves come from :mod:`.space`. It
+must not choose variables, call Ipopt or read study files.
 """
 from __future__ import annotations
 
@@ -13,28 +12,12 @@ import math
 import casadi as ca
 import numpy as np
 
-from ..characteristics import Curve, PiecewiseLinear
 from ..layout import state_layout
 from ..measures import measures_function
 from .spec import _Block, _up, VIOLATION_TOL
 
-__all__ = ["ONSET_SLOPE_FRACTION", "SHAPE_GRID"]
+__all__: list = []
 
-#: Default lower bound on the slope of a tuned loading curve next to zero
-#: deflection, as a fraction of the initial curve's slope there. A curve that
-#: is flat at zero force lets the foot of a massless leg sink without any
-#: force, which the contact step reads as lift-off: the body falls through
-#: and every output jumps (docs/optimise.md, "contact onset"). A tenth of the
-#: starting stiffness keeps well away from that edge and is not active at the
-#: optima measured here.
-ONSET_SLOPE_FRACTION = 0.1
-#: Number of check points per side of zero for shape constraints of curves
-#: without knots (linear, crushable), on [−range, range].
-SHAPE_GRID = 8
-#: x·ẋ used to select a single branch of a curve when evaluating its shape,
-#: in units of the curve's ``rate_width``: tanh(50) = 1 to double precision,
-#: so a smooth curve then returns exactly its loading or unloading branch.
-_BRANCH_SELECT = 50.0
 
 
 class _Constraints:
@@ -199,90 +182,4 @@ class _Constraints:
                     label="final vertical speed")
 
 
-    def _add_shape_constraints(self, theta, add):
-        """Monotone loading, onset slope and unloading-below rows, in terms of θ."""
-        p = ca.DM(self.p_fixed) + ca.DM(self._map) @ theta
-        lim = self.limits
-        ranges = dict(S=lim.stroke, M_beta=lim.beta, M_gamma=lim.gamma)
-        for j, name, curve, idx, shape in self._shapes:
-            th = ca.vertcat(*[p[k] for k in idx])
-            th0 = self.p_of(self.initial)[idx]
-            where = f"leg{j}.{name}"
-            points = _check_points(curve, ranges.get(name))
-            force_scale = max(float(np.max(np.abs([curve.force(x, _rate(curve, x, True), th0)
-                                                   for x in points]))), 1e-12)
-            slopes, mids, onset = _loading_slopes(curve, th, points)
-            if shape.monotone and slopes is not None:
-                slope0 = np.array([float(v) for v in _loading_slopes(curve, th0, points)[0]])
-                k_onset = shape.onset_slope
-                if k_onset is None:
-                    k_onset = ONSET_SLOPE_FRACTION * float(np.min(slope0[onset])) \
-                        if np.any(onset) else 0.0
-                    if np.any(onset) and k_onset <= 0:
-                        raise ValueError(
-                            f"{where}: the initial loading curve is not rising at zero "
-                            f"deflection (slope {np.min(slope0[onset]):g}); start from a "
-                            "rising curve or give `onset_slope` explicitly.")
-                minimum = np.where(onset, k_onset, 0.0)
-                slope_scale = max(float(np.max(np.abs(slope0))), 1e-12)
-                for i in range(len(slopes)):
-                    add(slopes[i] - minimum[i], "shape", slope_scale, 0.0, math.inf,
-                        "N/m" if name == "S" else "N·m/rad", label=(
-                            f"{where} loading slope at x = {mids[i]:.4g} ≥ {minimum[i]:.4g}"))
-            if shape.unloading_below and curve.unloading is not None:
-                for x in points:
-                    if x == 0:
-                        continue
-                    gap = np.sign(x) * (curve.force(x, _rate(curve, x, True), th)
-                                        - curve.force(x, _rate(curve, x, False), th))
-                    add(gap, "shape", force_scale, 0.0, math.inf,
-                        "N" if name == "S" else "N·m",
-                        label=f"{where} unloading below loading at x = {x:.4g}")
 
-
-def _rate(curve: Curve, x: float, loading: bool):
-    """A rate that selects one branch of ``curve`` exactly at x ≠ 0."""
-    if x == 0:
-        return 0.0
-    magnitude = _BRANCH_SELECT * curve.rate_width / abs(x)
-    return float(np.sign(x)) * magnitude * (1.0 if loading else -1.0)
-
-
-def _check_points(curve: Curve, extent) -> np.ndarray:
-    """Where shape constraints are checked: knots, or a grid on [−extent, extent]."""
-    pts = []
-    for c in (curve, curve.unloading):
-        if isinstance(c, PiecewiseLinear):
-            pts += list(c.knots)
-    if not pts:
-        extent = 1.0 if extent is None else extent
-        pts = list(np.linspace(-extent, extent, 2 * SHAPE_GRID + 1))
-    return np.unique(np.asarray(pts, dtype=float))
-
-
-def _loading_slopes(curve: Curve, th, points):
-    """Slopes of the loading branch, where, and which are next to x = 0.
-
-    For a piecewise-linear curve the slopes of its segments, from the knot
-    values (exact; a smoothed curve's slope blends neighbouring segments, so
-    it is monotone when they are); otherwise the slope at the check points.
-    """
-    if isinstance(curve, PiecewiseLinear):
-        xs = curve.knots
-        m = xs.size
-        slopes = [(th[i + 1] - th[i]) / (xs[i + 1] - xs[i]) for i in range(m - 1)]
-        mids = 0.5 * (xs[1:] + xs[:-1])
-        onset = (xs[:-1] <= 0) & (xs[1:] >= 0)
-        if not onset.any():                          # zero outside the knots: end segment
-            onset[0 if xs[0] > 0 else -1] = True
-        return slopes, mids, onset
-    pts = [x for x in points if x != 0]
-    if not pts:
-        return None, None, None
-    slopes = [curve.slope(x, _rate(curve, x, True), th) for x in pts]
-    pts = np.asarray(pts)
-    onset = np.zeros(pts.size, dtype=bool)
-    for side in (pts < 0, pts > 0):
-        if side.any():
-            onset[np.flatnonzero(side)[np.argmin(np.abs(pts[side]))]] = True
-    return slopes, pts, onset

@@ -1,15 +1,15 @@
 """The design problem: variables, scaling, evaluation and the Ipopt solve.
 
-Owns :class:`DesignProblem`: resolving design variables from parameter-name
-patterns, scaling, evaluating a design (objective, violated limits named by
+Owns :class:`DesignProblem`: its scenarios and models, scaling, evaluating a
+design (objective, violated limits named by
 scenario, leg and time), the feasible start and the solver call with its
-iteration line. The rows of the NLP come from :mod:`.constraints`, the
-gradient check from :mod:`.gradient`. It must not integrate: it receives
+iteration line. Variables and curve shapes come from :mod:`.space`, the
+rows of the NLP from :mod:`.constraints`, the gradient check from
+:mod:`.gradient`. It must not integrate: it receives
 ``touchdown_rollout`` from :mod:`symcushion.touchdown`.
 """
 from __future__ import annotations
 
-import fnmatch
 import math
 import time
 from typing import Callable, Sequence
@@ -20,11 +20,12 @@ import numpy as np
 from ..layout import quat_to_rot_np, state_layout
 from ..obstacles import closest_obstacle
 from ..touchdown import build_model, initial_state
-from .constraints import _check_points, _Constraints, _rate
+from .constraints import _Constraints
 from .gradient import _GradientCheck
+from .space import _DesignSpace
 from .progress import _IterationCallback
 from .result import DesignResult
-from .spec import (_Block, _leg_param_names, _real, _up, CurveShape, DesignVariable, Evaluation,
+from .spec import (_Block, _leg_param_names, _up, CurveShape, DesignVariable, Evaluation,
                    Limits, OBJECTIVES, Scenario, VIOLATION_TOL)
 
 __all__ = ["IPOPT_DEFAULTS", "FEASIBLE_SCALE_MAX", "FEASIBLE_BISECTIONS", "FEASIBLE_MARGIN",
@@ -64,7 +65,7 @@ FEASIBLE_BISECTIONS = 12
 FEASIBLE_MARGIN = 1e-2
 
 
-class DesignProblem(_Constraints, _GradientCheck):
+class DesignProblem(_DesignSpace, _Constraints, _GradientCheck):
     """The design NLP over a set of scenarios.
 
     Parameters
@@ -137,112 +138,6 @@ class DesignProblem(_Constraints, _GradientCheck):
         if key not in self._models:
             self._models[key] = build_model(scene)
         return self._models[key]
-
-    def _resolve_variables(self, specs):
-        if not specs:
-            raise ValueError("no design variables; give at least one (e.g. names = \"S.f*\") "
-                             "and mark the curve `tunable = true`.")
-        if not self.param_names:
-            raise ValueError("the legs have no tunable parameters; mark a curve "
-                             "`tunable = true` to make its parameters design variables.")
-        short = [n.split(".", 1)[1] for n in self.param_names]
-        taken = {}
-        self.var_names, self.var_index, lower, upper, scale = [], [], [], [], []
-        for i, spec in enumerate(specs):
-            if not isinstance(spec, DesignVariable):
-                raise TypeError(f"`variables[{i}]` must be a DesignVariable, got {spec!r}.")
-            patterns = [spec.names] if isinstance(spec.names, str) else list(spec.names)
-            excluded = [spec.exclude] if isinstance(spec.exclude, str) else list(spec.exclude)
-            lo = _real(f"variables[{i}].lower", spec.lower)
-            hi = _real(f"variables[{i}].upper", spec.upper)
-            if lo > hi:
-                raise ValueError(f"design variables {patterns}: `lower` = {lo:g} > `upper` = "
-                                 f"{hi:g}; swap the bounds.")
-            groups = {}
-            for k, (full, sh) in enumerate(zip(self.param_names, short)):
-                hit = any(fnmatch.fnmatchcase(full if pat.startswith("leg") else sh, pat)
-                          for pat in patterns)
-                out = any(fnmatch.fnmatchcase(full if pat.startswith("leg") else sh, pat)
-                          for pat in excluded)
-                if hit and not out:
-                    key = sh if spec.shared else full
-                    groups.setdefault(key, []).append(k)
-            if not groups:
-                raise ValueError(
-                    f"design variables {patterns} match no tunable parameter; the tunable "
-                    f"parameters are {list(self.param_names)} (patterns without `leg<j>.` "
-                    "match every leg).")
-            start = len(self.var_names)
-            for key, idx in groups.items():
-                for k in idx:
-                    if k in taken:
-                        raise ValueError(f"parameter `{self.param_names[k]}` is matched by "
-                                         f"design variables {taken[k]} and {patterns}; "
-                                         "match each parameter once.")
-                    taken[k] = patterns
-                values = self.p_default[idx]
-                if np.ptp(values) > 0:
-                    raise ValueError(f"design variable `{key}` is shared by legs whose initial "
-                                     f"values differ ({values.tolist()}); give the legs equal "
-                                     "values or set `shared = false`.")
-                if not lo <= values[0] <= hi:
-                    raise ValueError(f"design variable `{key}` starts at {values[0]:g}, outside "
-                                     f"its bounds [{lo:g}, {hi:g}]; widen the bounds or change "
-                                     "the scene's curve.")
-                self.var_names.append(key)
-                self.var_index.append(idx)
-                lower.append(lo)
-                upper.append(hi)
-            if spec.scale is not None:
-                sc = _real(f"variables[{i}].scale", spec.scale, positive=True)
-            else:
-                sc = float(np.max(np.abs(self.p_default[sum(groups.values(), [])])))
-                sc = sc if sc > 0 else 1.0
-            scale += [sc] * (len(self.var_names) - start)
-        self.lower, self.upper = np.array(lower), np.array(upper)
-        self.scale = np.array(scale)
-        n = len(self.var_names)
-        self._map = np.zeros((len(self.param_names), n))     # p = p_fixed + M θ
-        for j, idx in enumerate(self.var_index):
-            self._map[idx, j] = 1.0
-        self.p_fixed = np.where(self._map.any(axis=1), 0.0, self.p_default)
-        self.initial = np.array([self.p_default[idx[0]] for idx in self.var_index])
-
-    def _element_params(self):
-        """(leg j, element, curve, indices of its parameters in p) of tuned curves."""
-        out, seen = [], set()
-        for j, leg in enumerate(self.legs):
-            for el in leg.elements:
-                if not el.curve.tunable:
-                    continue
-                idx = [self.param_names.index(f"leg{j}.{el.name}.{n}")
-                       for n in el.curve.param_names]
-                if not self._map[idx].any():
-                    continue                        # nothing of this curve is designed
-                key = (id(el.curve), self._map[idx].tobytes(), self.p_fixed[idx].tobytes())
-                if key in seen:
-                    continue                        # same curve, same variables (symmetric legs)
-                seen.add(key)
-                out.append((j, el.name, el.curve, idx))
-        return out
-
-    def _resolve_shapes(self, shapes):
-        by_element = {}
-        for s in shapes:
-            if not isinstance(s, CurveShape):
-                raise TypeError(f"`shapes` entries must be CurveShape, got {s!r}.")
-            if s.element not in ("S", "M_beta", "M_gamma"):
-                raise ValueError(f"`shape.element` must be 'S', 'M_beta' or 'M_gamma', got "
-                                 f"{s.element!r}.")
-            by_element[s.element] = s
-        out = []
-        for j, name, curve, idx in self._element_params():
-            out.append((j, name, curve, idx, by_element.get(name, CurveShape(name))))
-        return out
-
-    def p_of(self, theta):
-        """Full parameter vector p (``param_names``) of design values θ (SI)."""
-        return self.p_fixed + self._map @ np.asarray(theta, dtype=float)
 
     def step_params(self, k: int, theta) -> np.ndarray:
         """The ``p`` of scenario ``k``'s ``touchdown_step`` at design θ: the legs' curve
@@ -502,25 +397,3 @@ class DesignProblem(_Constraints, _GradientCheck):
                          constraint_evaluations=int(stats.get("n_call_nlp_g", 0)), **build),
             meta=dict(start_scale=scale_c,
                       start_design=dict(zip(self.var_names, map(float, theta_start)))))
-
-    def characteristics(self, theta) -> dict:
-        """Loading and unloading values of each tuned curve at its check points."""
-        out = {}
-        theta = np.asarray(theta, dtype=float)
-        p = self.p_of(theta)
-        ranges = dict(S=self.limits.stroke, M_beta=self.limits.beta, M_gamma=self.limits.gamma)
-        for j, name, curve, idx, _ in self._shapes:
-            th = p[idx]
-            legs = [i for i, leg in enumerate(self.legs)
-                    if any(el.curve is curve for el in leg.elements)]
-            points = [float(x) for x in _check_points(curve, ranges.get(name))]
-            entry = dict(element=name, legs=legs, type=type(curve).__name__,
-                         parameters={n: float(v) for n, v in zip(curve.param_names, th)},
-                         x=points,
-                         loading=[float(curve.force(x, _rate(curve, x, True), th))
-                                  for x in points])
-            if curve.unloading is not None:
-                entry["unloading"] = [float(curve.force(x, _rate(curve, x, False), th))
-                                      for x in points]
-            out[f"leg{j}.{name}"] = entry
-        return out

@@ -1,0 +1,155 @@
+"""Smooth margins of one touchdown: the named Function ``touchdown_margins``.
+
+A design that must be stable over many touchdowns needs, per touchdown, a
+few numbers that say how close it came to each limit and that are smooth in
+the design. This module owns them: the scene's ``touchdown_step`` folded over
+a horizon, with each limit's running maximum replaced by a Kreisselmeier–
+Steinhauser (log-sum-exp) aggregate of value/limit over every step and leg,
+
+    KS_ρ(v) = m + ln Σ_k exp(ρ (v_k − m)) / ρ,     m = max_k v_k,
+
+carried through the fold as the pair (m, Σ) and updated stably each step.
+KS is smooth in the samples (the shift by m cancels exactly), never below
+the true maximum and at most ln(K)/ρ above it for K samples; near a single
+sharp peak it is within a few 1/ρ of it.
+
+Ratios, in :data:`CHECKS` order, are value/limit of: the tilt of the body
+axis from the true vertical as (1 − cos)/(1 − cos tilt_max); the axial
+stroke ±δ_S; the hinge angles ±β and ±(γ − γ₀); the norm of the specific
+force low-pass filtered as in the envelope (``DECEL_FILTER_TIME``); and the
+upward speed. A ratio above 1 fails that limit. Signed pairs (±δ) keep the
+aggregate smooth where a deflection passes through zero.
+
+It must not choose scenarios, designs or weights, and it must not classify:
+the envelope's running extrema (``symcushion.envelope``) stay the judge of a
+case; these are their smooth stand-ins for the optimiser.
+"""
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from ..envelope.cases import DECEL_FILTER_TIME
+from ..layout import state_layout
+from ..measures import measures_function
+from ..touchdown import StepModel
+
+__all__ = ["CHECKS", "DEFAULT_SHARPNESS", "margins_function"]
+
+#: The aggregated ratios, in output order.
+CHECKS = ("tip_over", "stroke", "beta", "gamma", "deceleration", "rebound")
+
+#: ρ of the KS aggregate, in units of 1/ratio. 200: the aggregate of a peak
+#: spread over ten samples is about ln(10)/200 ≈ 0.012 above the true
+#: maximum ratio (1.2 % of the limit, on the safe side), while the weights of
+#: samples more than 0.05 below the peak are below e^-10.
+DEFAULT_SHARPNESS = 200.0
+
+#: Start of the running maximum: far below any ratio, so the first sample
+#: takes over (exp(ρ·(−1e3)) underflows to 0 exactly).
+_FLOOR = -1e3
+
+
+def _ks_update(m, s, samples, rho):
+    """One step of the stable log-sum-exp fold: (m, Σ) after adding ``samples``."""
+    m1 = ca.fmax(m, ca.mmax(samples))
+    total = s * ca.exp(rho * (m - m1))
+    for i in range(samples.numel()):
+        total = total + ca.exp(rho * (samples[i] - m1))
+    return m1, total
+
+
+def margins_function(model: StepModel, steps: int, limits: dict, *,
+                     sharpness: float = DEFAULT_SHARPNESS, design=None) -> ca.Function:
+    """``touchdown_margins(x0, p0, w, dt) -> ratio``: smooth value/limit of every check.
+
+    Parameters
+    ----------
+    model : StepModel
+        ``build_model(scene)``; its step is called, not inlined.
+    steps : int
+        Steps of the horizon (≥ 1).
+    limits : dict
+        ``{check: limit}`` for the names of :data:`CHECKS` (tilt in rad, stroke
+        in m, β and γ in rad, deceleration in m/s², rebound in m/s). A check
+        whose limit is None or missing gets ratio 0.
+    sharpness : float
+        ρ of the KS aggregate (:data:`DEFAULT_SHARPNESS`).
+    design : ndarray, shape (np, nw), optional
+        The map M from the design vector w into the step's parameters:
+        p = p0 + M w. Default: w is empty and p = p0.
+
+    Returns
+    -------
+    casadi.Function
+        Inputs ``x0`` (nx), ``p0`` (np), ``w`` (nw), ``dt`` (s); output
+        ``ratio`` (len(CHECKS)): the KS aggregate of value/limit over the
+        horizon's steps (and legs), unsaturated.
+    """
+    if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
+        raise ValueError(f"`steps` must be a positive integer, got {steps!r}.")
+    if not (isinstance(sharpness, (int, float)) and np.isfinite(sharpness) and sharpness > 0):
+        raise ValueError(f"`sharpness` must be a positive number, got {sharpness!r}; "
+                         f"use {DEFAULT_SHARPNESS:g}.")
+    unknown = sorted(set(limits) - set(CHECKS))
+    if unknown:
+        raise ValueError(f"`limits` has unknown check(s) {unknown}; allowed: {list(CHECKS)}.")
+    scene = model.scene
+    M = np.zeros((model.np, 0)) if design is None else np.asarray(design, dtype=float)
+    if M.ndim != 2 or M.shape[0] != model.np:
+        raise ValueError(f"`design` must be an array of shape ({model.np}, nw), got "
+                         f"{M.shape}.")
+    n_checks = len(CHECKS)
+    rho = float(sharpness)
+    xl = state_layout(model.n_legs)
+    axial = [j for j, leg in enumerate(scene.legs) if not leg.rigid]
+
+    x = ca.SX.sym("x", model.nx)
+    a_f = ca.SX.sym("a_filtered", 3)
+    m = ca.SX.sym("m", n_checks)
+    s = ca.SX.sym("s", n_checks)
+    p = ca.SX.sym("p", model.np)
+    h = ca.SX.sym("dt")
+    x1, y = model.step(x, p, h)
+    meas = measures_function(scene).call(dict(x=x1, y=y, p=p))
+    # first-order low-pass of the specific force, as the envelope's peak deceleration
+    a_f1 = a_f + (1 - ca.exp(-h / DECEL_FILTER_TIME)) * (meas["specific_force"] - a_f)
+
+    def ratio(name, values):
+        limit = limits.get(name)
+        if limit is None:
+            return ca.SX.zeros(1)
+        if name == "tip_over":
+            return values / (1 - np.cos(limit))
+        return values / limit
+
+    samples = [ratio("tip_over", meas["one_minus_cos_tilt"]),
+               ratio("stroke", ca.vertcat(meas["stroke"][axial], -meas["stroke"][axial]))
+               if axial else ca.SX.zeros(1),
+               ratio("beta", ca.vertcat(meas["beta"], -meas["beta"])),
+               ratio("gamma", ca.vertcat(meas["gamma_deflection"], -meas["gamma_deflection"])),
+               ratio("deceleration", ca.norm_2(a_f1)),
+               ratio("rebound", meas["upward_speed"])]
+    m1, s1 = [], []
+    for i, v in enumerate(samples):
+        mi, si = _ks_update(m[i], s[i], v, rho)
+        m1.append(mi)
+        s1.append(si)
+    state = ca.vertcat(x, a_f, m, s)
+    state1 = ca.vertcat(x1, a_f1, *m1, *s1)
+    step = ca.Function("margins_step", [state, p, h], [state1], ["state", "p", "dt"],
+                       ["state_next"])
+
+    x0 = ca.MX.sym("x0", model.nx)
+    p0 = ca.MX.sym("p0", model.np)
+    w = ca.MX.sym("w", M.shape[1])
+    dt = ca.MX.sym("dt")
+    start = ca.vertcat(x0, ca.MX.zeros(3), ca.MX(n_checks, 1) + _FLOOR, ca.MX.zeros(n_checks))
+    end = step.fold(int(steps))(start, p0 + ca.DM(M) @ w, dt)
+    tail = model.nx + 3
+    peak, total = end[tail:tail + n_checks], end[tail + n_checks:]
+    out = peak + ca.log(total) / rho
+    # checks without a limit contribute exactly 0 (their samples are all 0 ⇒ KS = ln K/ρ)
+    keep = ca.DM([1.0 if limits.get(c) is not None else 0.0 for c in CHECKS])
+    return ca.Function("touchdown_margins", [x0, p0, w, dt], [out * keep],
+                       ["x0", "p0", "w", "dt"], ["ratio"])
