@@ -1,4 +1,4 @@
-"""Command line: ``symcushion reproduce | simulate | check | plot | codegen | optimise | envelope``.
+"""Command line: ``symcushion reproduce | simulate | check | plot | codegen | optimise | envelope | design``.
 
 Each sub-command is a thin layer over the public API; it parses arguments,
 reports progress and turns library errors into one-line messages.
@@ -202,6 +202,40 @@ def _cmd_optimise(args):
     return 0 if result.success and result.evaluation.feasible else 1
 
 
+def _cmd_design(args):
+    from .robust.study import load_robust_study, run_robust_study
+
+    study = load_robust_study(args.study)
+    if args.max_iter is not None:
+        if args.max_iter < 1:
+            raise ValueError(f"`--max-iter` must be a positive integer, got {args.max_iter}.")
+        study.ipopt["max_iter"] = args.max_iter
+    if args.n is not None:
+        if args.n < 1:
+            raise ValueError(f"`--n` must be a positive integer, got {args.n}.")
+        study.envelope = study.envelope.with_(n=args.n)
+    out = check_out_dir(args.out if args.out is not None else Path("out") / study.name, "--out")
+    client = None
+    if args.scheduler:
+        try:
+            from distributed import Client
+        except ImportError:
+            raise ImportError("--scheduler needs the optional extra: pip install "
+                              "'symcushion[dask]'.") from None
+        client = Client(args.scheduler)
+    try:
+        run = run_robust_study(study, out, threads=args.threads, client=client,
+                               scheduler=args.scheduler, verify=not args.no_verify,
+                               check_gradient=args.check, cache_dir=args.build_dir)
+    finally:
+        if client is not None:
+            client.close()
+    res = run["result"]
+    print(f"{study.name}: {res.return_status}, {res.iterations} iterations; "
+          f"{run['seconds']['total']:.0f} s in all; wrote {out}")
+    return 0 if res.success or res.return_status == "Maximum_Iterations_Exceeded" else 1
+
+
 def _cmd_envelope(args):
     from .envelope import load_study, run_envelope
 
@@ -312,6 +346,7 @@ def _parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_plot)
 
     _add_study_commands(sub)
+    _add_design_command(sub)
     return parser
 
 
@@ -363,6 +398,30 @@ def _add_study_commands(sub):
     p.add_argument("--build-dir", type=Path, default=None, metavar="DIR",
                    help="cache of compiled Functions (default: build/envelope)")
     p.set_defaults(func=_cmd_envelope)
+
+
+def _add_design_command(sub):
+    """The design sub-command (design for the envelope)."""
+    p = sub.add_parser("design", help="design the legs for touchdown stability over an "
+                                      "envelope: sample, select, optimise, verify",
+                       description="Design for the envelope (docs/optimise.md).")
+    p.add_argument("study", type=Path, help="design study TOML file (docs/optimise.md)")
+    p.add_argument("--out", type=Path, default=None, metavar="DIR",
+                   help="result folder (default: out/<study name>)")
+    p.add_argument("--threads", type=int, default=None,
+                   help="threads (default: every core)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run scenarios and envelopes on this Dask scheduler")
+    p.add_argument("--n", type=int, default=None,
+                   help="cases of the verification (default: sampling.n)")
+    p.add_argument("--max-iter", type=int, default=None, help="override Ipopt's max_iter")
+    p.add_argument("--no-verify", action="store_true",
+                   help="skip the before/after verification envelopes")
+    p.add_argument("--check", action="store_true",
+                   help="gradient check at the start and at the optimum")
+    p.add_argument("--build-dir", type=Path, default=None, metavar="DIR",
+                   help="cache of compiled Functions (default: build/robust, build/envelope)")
+    p.set_defaults(func=_cmd_design)
 
 
 def _terminate(signum, frame):

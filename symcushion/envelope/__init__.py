@@ -19,7 +19,7 @@ from .study import (VARIABLES, MAX_SLOPE_DEG, DEFAULT_BATCH, DEFAULT_CLEARANCE, 
                     Range, Limits, EnvelopeStudy, study_from_dict, load_study)
 from .sampling import SOBOL_BITS, sobol, sample_unit, sample_conditions
 from .cases import (SUMMARY, DECEL_FILTER_TIME, initial_states, envelope_function, case_params,
-                    reach)
+                    reach, apply_design)
 from .build import DEFAULT_CACHE, build_envelope, run_batch
 from .classify import CLASSES, classify
 from .statistics import CONFIDENCE, wilson_interval, EnvelopeResult
@@ -32,7 +32,8 @@ __all__ = ["VARIABLES", "MAX_SLOPE_DEG", "DEFAULT_BATCH", "DEFAULT_CLEARANCE", "
            "Range", "Limits",
            "EnvelopeStudy", "study_from_dict", "load_study", "SOBOL_BITS", "sobol", "sample_unit",
            "sample_conditions", "SUMMARY", "DECEL_FILTER_TIME", "initial_states",
-           "envelope_function", "case_params", "reach", "DEFAULT_CACHE", "build_envelope", "run_batch",
+           "envelope_function", "case_params", "reach", "apply_design", "DEFAULT_CACHE",
+           "build_envelope", "run_batch",
            "CLASSES", "classify", "CONFIDENCE", "wilson_interval", "EnvelopeResult",
            "PROGRESS_INTERVAL", "run_envelope", "evaluate", "write_result", "LOGISTIC_RIDGE",
            "plot_envelope"]

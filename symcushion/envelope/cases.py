@@ -18,7 +18,7 @@ from ..scene import Scene
 from ..touchdown import StepModel
 from .study import EnvelopeStudy
 
-__all__ = ["SUMMARY", "DECEL_FILTER_TIME", "initial_states", "reach", "envelope_function", "case_params"]
+__all__ = ["SUMMARY", "DECEL_FILTER_TIME", "initial_states", "reach", "apply_design", "envelope_function", "case_params"]
 
 #: Running extrema per case, the rows of ``envelope_case``'s ``summary``:
 #: max |δ_S| over legs with an axial element (m), max |β| and max |γ − γ₀|
@@ -176,6 +176,33 @@ def envelope_function(model: StepModel, steps: int | None = None) -> ca.Function
                          summary[_S["first_contact_time"] + 1:])
     return ca.Function("envelope_case", [x0, pm, hm], [xs_end[:nx], summary],
                        ["x0", "p", "dt"], ["x_end", "summary"])
+
+
+def apply_design(scene: Scene, p: np.ndarray, design: dict | None) -> np.ndarray:
+    """``p`` (np, n) with the legs' tunable curve parameters set from ``design``.
+
+    ``design`` maps parameter names to values: ``"S.f0"`` sets that entry of
+    every leg, ``"leg2.S.f0"`` of one leg (the names of
+    ``param_layout(scene).names``). The curves must be marked
+    ``tunable = true`` in the scene, which makes their parameters inputs of the
+    compiled case Function instead of constants.
+    """
+    if not design:
+        return p
+    names = param_layout(scene).names
+    p = np.array(p, dtype=float, copy=True)
+    for key, value in design.items():
+        rows = [i for i, n in enumerate(names) if n == key or
+                (n.startswith("leg") and n.split(".", 1)[1] == key)]
+        if not rows:
+            tunable = sorted({n.split(".", 1)[1] for n in names if n.startswith("leg")})
+            raise ValueError(f"`design` names {key!r}, which is not a tunable parameter of the "
+                             f"scene; tunable: {tunable} (mark a curve `tunable = true`).")
+        value = float(value)
+        if not np.isfinite(value):
+            raise ValueError(f"`design[{key!r}]` must be finite, got {value!r}.")
+        p[rows] = value
+    return p
 
 
 def case_params(scene: Scene, mu: np.ndarray, gravity: np.ndarray) -> np.ndarray:

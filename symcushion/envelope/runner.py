@@ -17,7 +17,7 @@ import numpy as np
 
 from ..scene import Scene
 from .build import _dask_batch, build_envelope, DEFAULT_CACHE, run_batch
-from .cases import case_params, initial_states, reach, SUMMARY
+from .cases import apply_design, case_params, initial_states, reach, SUMMARY
 from .classify import classify
 from .plots import plot_envelope
 from .sampling import sample_conditions
@@ -78,12 +78,16 @@ def _libraries(study: EnvelopeStudy, mu: np.ndarray, cache_dir, progress: bool) 
             for friction in sorted({bool(v > 0) for v in mu})}
 
 
-def _all_params(study: EnvelopeStudy, mu: np.ndarray, gravity: np.ndarray) -> dict:
-    """Each kind's parameter columns (np, n), indexed by case."""
-    return {friction: case_params(_level_scene(study.scene, friction, mu),
-                                  np.where(mu > 0, mu, 0.0) if friction else np.zeros_like(mu),
-                                  gravity)
-            for friction in sorted({bool(v > 0) for v in mu})}
+def _all_params(study: EnvelopeStudy, mu: np.ndarray, gravity: np.ndarray,
+                design: dict | None = None) -> dict:
+    """Each kind's parameter columns (np, n), indexed by case, with ``design`` applied."""
+    out = {}
+    for friction in sorted({bool(v > 0) for v in mu}):
+        scene = _level_scene(study.scene, friction, mu)
+        p = case_params(scene, np.where(mu > 0, mu, 0.0) if friction else np.zeros_like(mu),
+                        gravity)
+        out[friction] = apply_design(scene, p, design)
+    return out
 
 
 def _scene_data(study: EnvelopeStudy, friction: bool, mu: np.ndarray) -> dict | None:
@@ -96,7 +100,8 @@ def _scene_data(study: EnvelopeStudy, friction: bool, mu: np.ndarray) -> dict | 
 
 def run_envelope(study: EnvelopeStudy, out_dir=None, *, threads: int | None = None,
                  dask: bool = False, scheduler: str | None = None, workers: int = 2,
-                 cache_dir=None, progress: bool = True, plots: bool = True) -> EnvelopeResult:
+                 cache_dir=None, progress: bool = True, plots: bool = True,
+                 design: dict | None = None) -> EnvelopeResult:
     """Sample, run, classify and (with ``out_dir``) write an envelope study.
 
     Parameters
@@ -121,6 +126,11 @@ def run_envelope(study: EnvelopeStudy, out_dir=None, *, threads: int | None = No
         build its own copy.
     progress : bool
         A progress line on stderr.
+    design : dict, optional
+        Values of the legs' tunable curve parameters by name
+        (:func:`~symcushion.envelope.cases.apply_design`), e.g. an optimised
+        design; default the scene's own. One compiled library serves every
+        design.
 
     Returns
     -------
@@ -139,7 +149,7 @@ def run_envelope(study: EnvelopeStudy, out_dir=None, *, threads: int | None = No
     scene = study.scene
     started = time.perf_counter()
     libraries = _libraries(study, conditions["mu"], cache_dir, progress)
-    p = _all_params(study, conditions["mu"], gravity)
+    p = _all_params(study, conditions["mu"], gravity, design)
     build_seconds = time.perf_counter() - started
     tasks = _tasks(conditions, study.batch)
     x_end = np.zeros_like(x0)
@@ -173,7 +183,7 @@ def run_envelope(study: EnvelopeStudy, out_dir=None, *, threads: int | None = No
 
 
 def evaluate(study: EnvelopeStudy, conditions: dict, *, threads: int = 1, cache_dir=None,
-             progress: bool = False) -> dict:
+             progress: bool = False, design: dict | None = None) -> dict:
     """Run and classify given touchdown conditions (not sampled), e.g. hand-built cases.
 
     Parameters
@@ -205,7 +215,7 @@ def evaluate(study: EnvelopeStudy, conditions: dict, *, threads: int = 1, cache_
             full[name] = np.full(n, value)
     x0, gravity = initial_states(study, full)
     libraries = _libraries(study, full["mu"], cache_dir, progress)
-    p = _all_params(study, full["mu"], gravity)
+    p = _all_params(study, full["mu"], gravity, design)
     x_end = np.zeros_like(x0)
     summary = np.zeros((len(SUMMARY), n))
     for friction, idx in _tasks(full, study.batch):

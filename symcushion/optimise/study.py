@@ -23,7 +23,7 @@ from .problem import DesignProblem
 from .result import DesignResult
 from .spec import _up, CurveShape, DesignVariable, Limits, OBJECTIVES, Scenario
 
-__all__ = ["Study", "load_study", "study_from_dict", "run_study"]
+__all__ = ["Study", "load_study", "study_from_dict", "read_design_table", "run_study"]
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -111,25 +111,7 @@ def study_from_dict(data: dict, source: str = "<dict>", base_dir=".") -> Study:
     if not scenarios:
         scenarios = [Scenario("nominal", base)]
 
-    dz = top.get("design", kind="table")
-    variables = []
-    for t in dz.get("variables", kind="tables"):
-        variables.append(DesignVariable(
-            names=t.get("names", kind="strings"), lower=t.get("lower", -math.inf),
-            upper=t.get("upper", math.inf), shared=t.get("shared", True, kind="bool"),
-            exclude=t.get("exclude", [], kind="strings"),
-            scale=t.get("scale", None, positive=True)))
-        t.finish()
-    shapes = []
-    for t in (dz.get("shape", kind="tables") if dz.has("shape") else []):
-        shapes.append(CurveShape(
-            element=t.get("element", kind="string", choices=("S", "M_beta", "M_gamma")),
-            monotone=t.get("monotone", True, kind="bool"),
-            unloading_below=t.get("unloading_below", True, kind="bool"),
-            onset_slope=t.get("onset_slope", None, nonnegative=True)))
-        t.finish()
-    dz.used.add("shape")
-    dz.finish()
+    variables, shapes = read_design_table(top.get("design", kind="table"))
 
     lim = top.get("limits", kind="table") if top.has("limits") else _Fields({}, "limits", source)
     top.used.add("limits")
@@ -171,6 +153,35 @@ def study_from_dict(data: dict, source: str = "<dict>", base_dir=".") -> Study:
         raise ValueError(f"{source}: {exc}") from None
     return Study(name=name, problem=problem, ipopt=ipopt, source=source, description=description,
                  compiled=compiled)
+
+
+def read_design_table(dz) -> tuple:
+    """``[[design.variables]]`` and ``[[design.shape]]`` of a study's ``[design]`` table.
+
+    Returns
+    -------
+    variables : list of DesignVariable
+    shapes : list of CurveShape
+    """
+    variables = []
+    for t in dz.get("variables", kind="tables"):
+        variables.append(DesignVariable(
+            names=t.get("names", kind="strings"), lower=t.get("lower", -math.inf),
+            upper=t.get("upper", math.inf), shared=t.get("shared", True, kind="bool"),
+            exclude=t.get("exclude", [], kind="strings"),
+            scale=t.get("scale", None, positive=True)))
+        t.finish()
+    shapes = []
+    for t in (dz.get("shape", kind="tables") if dz.has("shape") else []):
+        shapes.append(CurveShape(
+            element=t.get("element", kind="string", choices=("S", "M_beta", "M_gamma")),
+            monotone=t.get("monotone", True, kind="bool"),
+            unloading_below=t.get("unloading_below", True, kind="bool"),
+            onset_slope=t.get("onset_slope", None, nonnegative=True)))
+        t.finish()
+    dz.used.add("shape")
+    dz.finish()
+    return variables, shapes
 
 
 def _smooth_tunable(scene: Scene, kink_width, rate_width):

@@ -30,7 +30,6 @@ import casadi as ca
 import numpy as np
 
 from ..envelope.cases import DECEL_FILTER_TIME
-from ..layout import state_layout
 from ..measures import measures_function
 from ..touchdown import StepModel
 
@@ -101,7 +100,6 @@ def margins_function(model: StepModel, steps: int, limits: dict, *,
                          f"{M.shape}.")
     n_checks = len(CHECKS)
     rho = float(sharpness)
-    xl = state_layout(model.n_legs)
     axial = [j for j, leg in enumerate(scene.legs) if not leg.rigid]
 
     x = ca.SX.sym("x", model.nx)

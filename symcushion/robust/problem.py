@@ -1,0 +1,407 @@
+"""Design for the envelope: the legs' curves that keep many touchdowns within their limits.
+
+Owns :class:`EnvelopeDesign`: the scenario NLP over the legs' tunable curve
+parameters with a risk measure of the scenarios' losses as objective, its
+scaling, start, Ipopt solve, multipliers and result. Per scenario s and
+check c the loss is L_sc = sat(r_sc) − 1, with r_sc the smooth value/limit of
+:mod:`.margins` (> 0 fails) and sat the identity up to 1 that then levels
+off smoothly at ``saturation``::
+
+    sat(r) = r                                           r ≤ 1
+    sat(r) = 1 + (R − 1)·tanh((r − 1)/(R − 1))           r > 1
+
+so that a scenario far beyond a limit (a tip-over the legs cannot prevent)
+stops pulling the design; it is C² at r = 1. Risk measures of the scenario
+loss L_s = max_c L_sc, each exact through an epigraph (no max is formed):
+
+* ``cvar``: the conditional value at risk at level α (Rockafellar–Uryasev),
+  min η + Σ_s u_s/((1 − α)·S) with u_s ≥ L_sc − η for every c and u_s ≥ 0:
+  the mean loss of the worst (1 − α) share of the scenarios;
+* ``worst``: min η with η ≥ L_sc for every s and c.
+
+The scenarios' ratios and their Jacobian run in compiled C on threads or
+Dask (:mod:`.evaluate`); variables and curve shapes come from
+:mod:`symcushion.optimise.space`, the gradient check from
+:mod:`symcushion.optimise.gradient`. It must not choose scenarios, sample,
+classify or write files.
+"""
+from __future__ import annotations
+
+import math
+import os
+import time
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+
+from ..envelope.cases import case_params, initial_states
+from ..envelope.study import EnvelopeStudy
+from ..optimise.gradient import _GradientCheck
+from ..optimise.problem import IPOPT_DEFAULTS
+from ..optimise.progress import _IterationCallback
+from ..optimise.space import _DesignSpace
+from ..optimise.spec import _Block, _leg_param_names, Limits, VIOLATION_TOL
+from ..touchdown import build_model
+from .evaluate import build_margins, ScenarioRatios
+from .margins import CHECKS, DEFAULT_SHARPNESS
+
+__all__ = ["RISKS", "DEFAULT_ALPHA", "DEFAULT_SATURATION", "DEFAULT_HORIZON", "saturate",
+           "EnvelopeDesign", "RobustResult"]
+
+#: Risk measures of the scenario losses.
+RISKS = ("cvar", "worst")
+#: CVaR level: the mean loss of the worst half of the scenarios. The scenarios
+#: are chosen near and beyond the boundary of the stable region, so the worse
+#: half are those a design can still turn; α → 1 approaches ``worst``.
+DEFAULT_ALPHA = 0.5
+#: Level R at which sat(r) levels off: a ratio three times its limit is lost
+#: whatever the design does; its gradient is then below 1e-3 of a ratio's
+#: near the limit (sech²(5) once r is 11).
+DEFAULT_SATURATION = 3.0
+#: Horizon of a scenario (s): long enough for a tip-over to be decided (a
+#: lander that tips goes past the 35° limit within about a second of
+#: touchdown on the example study, docs/envelope.md).
+DEFAULT_HORIZON = 1.5
+#: Ipopt options of the envelope design: the design package's defaults with a
+#: looser tolerance (the losses are smooth stand-ins for classes, so 1e-6 of
+#: their scale is far below what changes a class) and fewer iterations.
+_IPOPT = {**IPOPT_DEFAULTS, "tol": 1e-6, "acceptable_tol": 1e-4, "max_iter": 100}
+
+
+def saturate(r, top: float = DEFAULT_SATURATION):
+    """sat(r): r up to 1, then leveling off smoothly at ``top`` (NumPy or CasADi)."""
+    span = top - 1.0
+    if isinstance(r, (ca.MX, ca.SX, ca.DM)):
+        return ca.if_else(r <= 1, r, 1 + span * ca.tanh((r - 1) / span))
+    r = np.asarray(r, dtype=float)
+    return np.where(r <= 1, r, 1 + span * np.tanh((r - 1) / span))
+
+
+@dataclass
+class RobustResult:
+    """The outcome of :meth:`EnvelopeDesign.solve`.
+
+    Attributes
+    ----------
+    theta : ndarray
+        The optimal design (SI), in ``var_names`` order.
+    var_names : list of str
+    return_status : str
+    iterations : int
+    ratios_start, ratios : ndarray, shape (len(checks), S)
+        value/limit of each check and scenario at the start and the optimum.
+    checks : list of str
+    scenarios : list of str
+    objective_start, objective : float
+        The risk measure of the losses at the start and the optimum.
+    multipliers : dict
+        ``scenarios``: per scenario, Ipopt's multiplier of its loss rows
+        summed (how much the risk measure would gain if that scenario's
+        limits were relaxed); ``checks``: the same summed per check;
+        ``bounds``: design variables at a bound with their multipliers;
+        ``shapes``: shape rows with a non-zero multiplier.
+    history : list of dict
+    timings : dict
+    """
+
+    theta: np.ndarray
+    var_names: list
+    return_status: str
+    iterations: int
+    ratios_start: np.ndarray
+    ratios: np.ndarray
+    checks: list
+    scenarios: list
+    objective_start: float
+    objective: float
+    multipliers: dict = field(default_factory=dict)
+    history: list = field(default_factory=list)
+    timings: dict = field(default_factory=dict)
+
+    @property
+    def design(self) -> dict:
+        """{variable name: optimal value}."""
+        return dict(zip(self.var_names, map(float, self.theta)))
+
+    @property
+    def success(self) -> bool:
+        return self.return_status in ("Solve_Succeeded", "Solved_To_Acceptable_Level")
+
+    def scenarios_within(self, which: str = "end") -> int:
+        """How many scenarios meet every limit (all ratios ≤ 1) at the start or the end."""
+        r = self.ratios if which == "end" else self.ratios_start
+        return int(np.sum(np.all(r <= 1.0, axis=0)))
+
+
+class EnvelopeDesign(_DesignSpace, _GradientCheck):
+    """The scenario NLP of a design for the envelope.
+
+    Parameters
+    ----------
+    study : EnvelopeStudy
+        Scene (its tuned curves marked ``tunable = true``), limits and the
+        slope frame of the cases.
+    conditions : dict of str to ndarray
+        The scenarios: touchdown conditions by name of the envelope's
+        variables (each an array of length S), e.g. from
+        :func:`~symcushion.robust.select.select_scenarios`.
+    variables : sequence of DesignVariable
+    names : sequence of str, optional
+        Scenario names for reports (default ``s0 … s{S-1}``).
+    horizon : float
+        Simulated time per scenario (s).
+    risk : {'cvar', 'worst'}
+    alpha : float
+        CVaR level in [0, 1).
+    saturation : float
+        R of :func:`saturate`, > 1.
+    sharpness : float
+        ρ of the KS aggregates (:mod:`.margins`).
+    shapes : sequence of CurveShape
+        Default: monotone loading and unloading below loading for every
+        element with a design variable.
+    threads : int, optional
+        Threads evaluating the scenarios (default: every core).
+    client : distributed.Client, optional
+        Evaluate the scenarios as Dask tasks instead.
+    cache_dir : str or Path, optional
+        Folder of the compiled library (:data:`~symcushion.robust.evaluate.DEFAULT_CACHE`).
+    progress : bool
+    """
+
+    def __init__(self, study: EnvelopeStudy, conditions: dict, variables, *, names=None,
+                 horizon: float = DEFAULT_HORIZON, risk: str = "cvar",
+                 alpha: float = DEFAULT_ALPHA, saturation: float = DEFAULT_SATURATION,
+                 sharpness: float = DEFAULT_SHARPNESS, shapes=(), threads: int | None = None,
+                 client=None, cache_dir=None, progress: bool = False):
+        started = time.perf_counter()
+        if not isinstance(study, EnvelopeStudy):
+            raise TypeError(f"`study` must be an EnvelopeStudy, got {type(study).__name__}.")
+        if risk not in RISKS:
+            raise ValueError(f"`risk` must be one of {RISKS}, got {risk!r}.")
+        if not (isinstance(alpha, (int, float)) and 0 <= alpha < 1):
+            raise ValueError(f"`alpha` must be in [0, 1), got {alpha!r}; e.g. {DEFAULT_ALPHA}.")
+        if not (isinstance(saturation, (int, float)) and saturation > 1):
+            raise ValueError(f"`saturation` must be > 1, got {saturation!r}; e.g. "
+                             f"{DEFAULT_SATURATION}.")
+        if not (isinstance(horizon, (int, float)) and horizon > 0 and math.isfinite(horizon)):
+            raise ValueError(f"`horizon` must be a positive time in s, got {horizon!r}.")
+        threads = (os.cpu_count() or 1) if threads is None else threads
+        if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
+            raise ValueError(f"`threads` must be a positive integer, got {threads!r}.")
+        self.study, self.risk, self.alpha, self.saturation = study, risk, float(alpha), \
+            float(saturation)
+        scene = study.scene
+        self.scene = scene
+        self.steps = max(1, int(round(horizon / scene.dt)))
+        self.horizon = self.steps * scene.dt
+        model = build_model(scene)
+        self.model = model
+        self.param_names = _leg_param_names(model)
+        self.legs = scene.legs
+        self.p_default = np.concatenate([leg.param_values for leg in self.legs]) \
+            if self.param_names else np.zeros(0)
+        if not self.param_names:
+            raise ValueError("the study's legs have no tunable parameters; mark the curves to "
+                             "design `tunable = true` (docs/optimise.md).")
+        lim = study.limits
+        self.limits = Limits(stroke=lim.stroke, beta=lim.beta, gamma=lim.gamma,
+                             tilt=None if lim.tilt_deg is None else math.radians(lim.tilt_deg),
+                             rebound_speed=lim.rebound_speed, deceleration=lim.deceleration,
+                             sink_speed=None)
+        self._limits = dict(tip_over=self.limits.tilt, stroke=lim.stroke, beta=lim.beta,
+                            gamma=lim.gamma, deceleration=lim.deceleration,
+                            rebound=lim.rebound_speed)
+        self.checks = [c for c in CHECKS if self._limits[c] is not None]
+        self._resolve_variables(list(variables))
+        self._shapes = self._resolve_shapes(list(shapes))
+        self._set_scenarios(conditions, names)
+        nv, n_leg = len(self.var_names), len(self.param_names)
+        design = np.zeros((model.np, nv))
+        design[:n_leg] = self._map * self.scale          # p = p0 + design·w, w = θ/scale
+        self.library, compile_seconds = build_margins(
+            model, self.steps, self._limits, design, sharpness=sharpness, cache_dir=cache_dir,
+            name=f"{study.name}-{self.steps}", progress=progress)
+        self._ratios = ScenarioRatios(self.library, self.x0, self.p0, scene.dt, threads, client)
+        self.threads = threads
+        self._build()
+        self.timings = dict(compile_seconds=compile_seconds,
+                            build_seconds=time.perf_counter() - started)
+
+    # -- construction -----------------------------------------------------------
+    def _set_scenarios(self, conditions, names):
+        arrays = {k: np.atleast_1d(np.asarray(v, dtype=float)) for k, v in conditions.items()}
+        sizes = {v.size for v in arrays.values()}
+        if len(sizes) != 1 or 0 in sizes:
+            raise ValueError("`conditions` must hold arrays of one common, non-zero length "
+                             f"(one entry per scenario), got lengths {sorted(sizes)}.")
+        self.conditions = arrays
+        S = sizes.pop()
+        self.names = [f"s{i}" for i in range(S)] if names is None else list(names)
+        if len(self.names) != S:
+            raise ValueError(f"`names` must have one entry per scenario ({S}), got "
+                             f"{len(self.names)}.")
+        x0, gravity = initial_states(self.study, arrays)
+        mu = arrays.get("mu", np.full(S, self.scene.mu))
+        p = case_params(self.scene, mu, gravity)
+        p[:len(self.param_names)] = self.p_fixed[:, None]     # designed entries come from w
+        self.x0, self.p0 = x0, p
+
+    def _build(self):
+        nv, S, C = len(self.var_names), len(self.names), len(self.checks)
+        w = ca.MX.sym("w", nv)
+        eta = ca.MX.sym("eta")
+        u = ca.MX.sym("u", S if self.risk == "cvar" else 0)
+        R = self._ratios(w)
+        rows_idx = [CHECKS.index(c) for c in self.checks]
+        loss = saturate(R[rows_idx, :], self.saturation) - 1          # C × S
+        blocks, rows = [], []
+
+        def add(expr, kind, scale, lower, upper, unit, scenario=None, leg=None, dt=None,
+                label=""):
+            expr = ca.vec(expr)
+            if kind == "shape" and not ca.depends_on(expr, w):
+                value = float(ca.Function("fixed", [w], [expr])(np.zeros(nv)))
+                if not lower - VIOLATION_TOL <= value / scale <= upper + VIOLATION_TOL:
+                    raise ValueError(f"shape constraint `{label}` fails ({value:.4g} {unit}) "
+                                     "and no design variable can change it.")
+                return
+            start = sum(r.numel() for r in rows)
+            blocks.append(_Block(kind, scenario, leg, start, start + expr.numel(), lower,
+                                 upper, scale, unit, dt, label))
+            rows.append(expr / scale)
+
+        for s, name in enumerate(self.names):
+            top = eta + (u[s] if self.risk == "cvar" else 0)
+            add(top - loss[:, s], "risk", 1.0, 0.0, math.inf, "", name,
+                label="η + u_s ≥ loss of " + ", ".join(self.checks))
+        self._add_shape_constraints(w * ca.DM(self.scale), add)
+        f = eta + (ca.sum1(u) / ((1 - self.alpha) * S) if self.risk == "cvar" else 0)
+        self.blocks, self._w, self._C = blocks, w, C
+        x = ca.vertcat(w, eta, u)
+        self.nlp = {"x": x, "f": f, "g": ca.vertcat(*rows)}
+        self.lbg = np.concatenate([np.full(b.stop - b.start, b.lower) for b in blocks])
+        self.ubg = np.concatenate([np.full(b.stop - b.start, b.upper) for b in blocks])
+        self._fg = ca.Function("robust_fg", [x], [f, self.nlp["g"]], ["x"], ["f", "g"])
+        self._R = ca.Function("robust_ratios", [w], [R], ["w"], ["R"])
+
+    # -- evaluation -------------------------------------------------------------
+    @property
+    def n_variables(self) -> int:
+        return len(self.var_names)
+
+    def ratios(self, theta=None) -> np.ndarray:
+        """value/limit of every check (rows: :data:`CHECKS`) and scenario (columns) at θ."""
+        theta = self.initial if theta is None else np.asarray(theta, dtype=float)
+        return np.asarray(self._R(theta / self.scale), dtype=float)
+
+    def losses(self, theta=None) -> np.ndarray:
+        """L_s = max over checks of sat(r) − 1, per scenario, at θ."""
+        R = self.ratios(theta)[[CHECKS.index(c) for c in self.checks]]
+        return np.max(saturate(R, self.saturation) - 1, axis=0)
+
+    def risk_of(self, losses) -> tuple:
+        """(risk measure, η, u) of scenario losses: the epigraph variables at their optimum."""
+        L = np.asarray(losses, dtype=float)
+        if self.risk == "worst":
+            return float(L.max()), float(L.max()), np.zeros(0)
+        # Rockafellar–Uryasev: η at the α-quantile (any point of the flat optimum)
+        eta = float(np.quantile(L, self.alpha, method="inverted_cdf"))
+        u = np.maximum(L - eta, 0.0)
+        return eta + float(u.sum()) / ((1 - self.alpha) * L.size), eta, u
+
+    def scaled(self, theta, t=None):
+        """NLP vector (θ/scale, η, u) with the epigraph variables at their optimum for θ."""
+        theta = np.asarray(theta, dtype=float)
+        _, eta, u = self.risk_of(self.losses(theta))
+        return np.concatenate([theta / self.scale, [eta], u])
+
+    def fg(self, x):
+        """(f, g) of the NLP at x (NumPy)."""
+        f, g = self._fg(x)
+        return float(f), np.asarray(g, dtype=float).ravel()
+
+    # -- solve ------------------------------------------------------------------
+    def solve(self, ipopt: dict | None = None, progress=False) -> RobustResult:
+        """Solve the scenario NLP with Ipopt from the study's curves.
+
+        Parameters
+        ----------
+        ipopt : dict, optional
+            Ipopt options over the defaults (limited-memory Hessian, monotone
+            barrier from 1e-4, tol 1e-6, at most 100 iterations).
+        progress : bool or callable
+            True prints one line per iteration; a callable receives each
+            iteration's dict (iteration, risk, scenarios within, seconds).
+        """
+        started = time.perf_counter()
+        x0 = self.scaled(self.initial)
+        nv = self.n_variables
+        lbx = np.concatenate([self.lower / self.scale, [-1.0],
+                              np.zeros(x0.size - nv - 1)])
+        ubx = np.concatenate([self.upper / self.scale, [self.saturation],
+                              np.full(x0.size - nv - 1, np.inf)])
+        history = []
+        R0 = self.ratios(self.initial)
+
+        def on_iteration(x, f, g):
+            R = self.ratios(x[:nv] * self.scale)
+            row = dict(iteration=len(history), risk=f, seconds=time.perf_counter() - started,
+                       within=int(np.sum(np.all(R[[CHECKS.index(c) for c in self.checks]]
+                                                <= 1.0, axis=0))))
+            history.append(row)
+            if callable(progress):
+                progress(row)
+            elif progress:
+                print(f"  iteration {row['iteration']:3d}: risk {f:+.5f}, scenarios within "
+                      f"every limit {row['within']}/{len(self.names)}, "
+                      f"{row['seconds']:.1f} s", flush=True)
+
+        options = dict(_IPOPT, **(ipopt or {}))
+        callback = _IterationCallback(x0.size, self.lbg.size, on_iteration) \
+            if progress else None
+        opts = {"ipopt": options, "print_time": False}
+        if callback is not None:
+            opts["iteration_callback"] = callback
+        solver = ca.nlpsol("robust_design", "ipopt", self.nlp, opts)
+        sol = solver(x0=x0, lbx=lbx, ubx=ubx, lbg=self.lbg, ubg=self.ubg)
+        stats = solver.stats()
+        x = np.asarray(sol["x"], dtype=float).ravel()
+        theta = np.clip(x[:nv] * self.scale, self.lower, self.upper)
+        R = self.ratios(theta)
+        objective = self.risk_of(self.losses(theta))[0]
+        return RobustResult(
+            theta=theta, var_names=list(self.var_names), return_status=stats["return_status"],
+            iterations=int(stats.get("iter_count", 0)), ratios_start=R0, ratios=R,
+            checks=list(CHECKS), scenarios=list(self.names),
+            objective_start=self.risk_of(self.losses(self.initial))[0], objective=objective,
+            multipliers=self._multipliers(np.asarray(sol["lam_g"], dtype=float).ravel(),
+                                          np.asarray(sol["lam_x"], dtype=float).ravel(), x),
+            history=history,
+            timings=dict(self.timings, solve_seconds=time.perf_counter() - started,
+                         ratio_calls=self._ratios.calls,
+                         ratio_seconds=self._ratios.seconds,
+                         jacobian_calls=self._ratios.jacobian_calls[0],
+                         jacobian_seconds=self._ratios.jacobian_calls[1],
+                         threads=self.threads))
+
+    def _multipliers(self, lam_g, lam_x, x) -> dict:
+        """Which scenarios, checks, bounds and shapes bind, by Ipopt's multipliers."""
+        per_scenario, per_check = {}, {c: 0.0 for c in self.checks}
+        shapes = []
+        for b in self.blocks:
+            lam = -lam_g[b.start:b.stop]          # ≥ 0 for a binding lower bound
+            if b.kind == "risk":
+                per_scenario[b.scenario] = float(lam.sum())
+                for c, value in zip(self.checks, lam):
+                    per_check[c] += float(value)
+            elif np.any(np.abs(lam) > 1e-6):
+                shapes.append(dict(label=b.label, multiplier=float(np.abs(lam).max())))
+        bounds = []
+        for i, name in enumerate(self.var_names):
+            if abs(lam_x[i]) > 1e-6:
+                at = "upper" if lam_x[i] > 0 else "lower"
+                bounds.append(dict(variable=name, bound=at, value=float(x[i] * self.scale[i]),
+                                   multiplier=float(lam_x[i])))
+        return dict(scenarios=per_scenario, checks=per_check, bounds=bounds, shapes=shapes)

@@ -1,0 +1,196 @@
+"""Design for the envelope: smooth margins, scenario selection, the NLP and the loop.
+
+A small three-legged lander whose axial crush force is too weak for the
+faster drops (stroke failures) is designed over a few scenarios with a short
+horizon; its held-out Monte Carlo P(stable) must rise.
+"""
+from __future__ import annotations
+
+import copy
+import json
+import math
+
+import numpy as np
+import pytest
+
+from symcushion import envelope as ev
+from symcushion.codegen import find_compiler
+from symcushion.robust import CHECKS, EnvelopeDesign, saturate
+from symcushion.robust.select import select_scenarios, worst_margin
+from symcushion.robust.study import robust_study_from_dict, run_robust_study
+
+needs_cc = pytest.mark.skipif(find_compiler() is None, reason="needs a C compiler")
+
+#: A 100 kg body on three vertical legs whose crush plateau (1 kN) is too weak
+#: for the faster drops: 3 legs × 1 kN × 0.2 m = 600 J against up to 450 J of
+#: impact energy plus 196 J of gravity over the stroke.
+TINY = {
+    "study": {"name": "tiny_design"},
+    "scene": {"mu": 0.5, "method": "robust", "dt": 2e-3, "duration": 1.0,
+              "gravity": [0.0, 0.0, -9.81]},
+    "body": {"mass": 100.0, "inertia": [10.0, 10.0, 12.0]},
+    "legs": {"count": 3, "radius": 0.4, "height": -0.1, "length": 0.6,
+             "e0": [0.0, 0.0, -1.0], "en": [-0.5, 0.0, -0.8660254037844386],
+             "S": {"type": "piecewise", "tunable": True, "x": [-0.3, -0.02, 0.0],
+                   "f": [-1000.0, -1000.0, 0.0],
+                   "unloading": {"type": "piecewise", "x": [-0.3, -0.01, 0.0],
+                                 "f": [-300.0, -300.0, 0.0]}},
+             "M_beta": {"type": "linear", "stiffness": 2e4},
+             "M_gamma": {"type": "linear", "stiffness": 2e4}},
+    "obstacle": [{"type": "plane"}],
+    "sampling": {"n": 48, "seed": 5},
+    "ranges": {"vertical_speed": [1.5, 3.0], "slope_deg": [0.0, 5.0]},
+    "limits": {"stroke": 0.2, "deceleration": 80.0, "rebound_speed": 0.5,
+               "rest_speed": False},
+    "design": {"variables": [{"names": "S.f*", "exclude": ["S.f2"], "lower": -6000.0,
+                              "upper": 0.0}]},
+    "robust": {"pool": 32, "seed": 9, "scenarios": 4, "horizon": 0.5,
+               "ipopt": {"max_iter": 40}},
+}
+
+
+# ---------------------------------------------------------------------------
+# pieces
+# ---------------------------------------------------------------------------
+def test_saturate_is_the_identity_up_to_the_limit_and_levels_off():
+    r = np.linspace(-1, 1, 11)
+    assert np.array_equal(saturate(r), r)
+    h = 1e-7
+    slope = (saturate(1 + h, 3.0) - saturate(1 - h, 3.0)) / (2 * h)
+    assert abs(slope - 1) < 1e-6                      # C¹ at r = 1
+    assert saturate(1e6, 3.0) <= 3.0 and saturate(11.0, 3.0) > 2.99
+    assert np.all(np.diff(saturate(np.linspace(0, 20, 200), 3.0)) > 0)
+
+
+def test_select_scenarios_takes_failures_near_the_boundary_by_class():
+    cls = np.array(["stable"] * 6 + ["tip_over"] * 4 + ["stroke"] * 2 + ["moving"])
+    margins = np.array([0.5, 0.01, 0.2, 0.03, 0.9, 0.02,      # stable
+                        -0.05, -3.0, -0.4, -0.2,              # tip-overs, one hopeless
+                        -0.1, -0.5, 0.3])
+    columns = {"class": cls, "margin_tip_over": margins,
+               "margin_stroke": np.ones(cls.size)}
+    idx = select_scenarios(columns, 5, fail_share=0.6)
+    # 3 failures (2 tip-overs, 1 stroke: the counts' proportion), closest first,
+    # then the 2 stable cases with the smallest margins
+    assert list(idx) == [1, 5, 6, 9, 10]
+    assert 7 not in select_scenarios(columns, 13, fail_share=1.0)   # margin −3 < −1
+    assert np.array_equal(worst_margin(columns), np.minimum(margins, 1.0))
+    with pytest.raises(ValueError, match="`n`"):
+        select_scenarios(columns, 0)
+    with pytest.raises(ValueError, match="`fail_share`"):
+        select_scenarios(columns, 3, fail_share=1.5)
+
+
+@pytest.mark.parametrize("path, value, words", [
+    ("robust.seed", 5, "equals `sampling.seed`"),
+    ("robust.risk", "mean", "robust.risk"),
+    ("robust.alpha", 1.0, "robust.alpha"),
+    ("robust.saturation", 1.0, "robust.saturation"),
+    ("robust.scenario", 3, "unknown field"),
+    ("design", None, "no `[design]` table"),
+])
+def test_bad_design_study_files_name_the_field(path, value, words):
+    data = copy.deepcopy(TINY)
+    head, _, key = path.rpartition(".")
+    target = data[head] if head else data
+    if value is None:
+        del target[key]
+    else:
+        target[key] = value
+    with pytest.raises(ValueError) as err:
+        robust_study_from_dict(data, "bad.toml")
+    assert words in str(err.value) and "bad.toml" in str(err.value), str(err.value)
+
+
+def test_apply_design_names_unknown_parameters():
+    study = robust_study_from_dict(TINY, "tiny.toml").envelope
+    p = ev.case_params(study.scene, np.zeros(1), np.array([[0.0], [0.0], [-9.81]]))
+    with pytest.raises(ValueError, match="`design` names 'S.k'"):
+        ev.apply_design(study.scene, p, {"S.k": 1.0})
+    with pytest.raises(ValueError, match="finite"):
+        ev.apply_design(study.scene, p, {"S.f0": math.nan})
+    q = ev.apply_design(study.scene, p, {"S.f0": -5.0, "leg1.S.f1": -7.0})
+    assert np.count_nonzero(q == -5.0) == 3 and np.count_nonzero(q == -7.0) == 1
+
+
+# ---------------------------------------------------------------------------
+# compiled: margins, the NLP and the loop
+# ---------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    study = robust_study_from_dict(TINY, "tiny.toml")
+    out = tmp_path_factory.mktemp("design")
+    return run_robust_study(study, out, threads=2, check_gradient=True,
+                            cache_dir=tmp_path_factory.mktemp("build"), progress=False), out
+
+
+@needs_cc
+def test_margins_bound_the_envelope_extrema_from_above(run):
+    """KS ratios lie between the running maxima and ln(K)/ρ above them."""
+    run, _ = run
+    problem, pool = run["problem"], run["pool"]
+    R = problem.ratios()
+    study = problem.study.with_(scene=problem.scene.with_(duration=problem.horizon))
+    cond = {k: v[run["indices"]] for k, v in pool.conditions.items()}
+    c = ev.evaluate(study, cond, cache_dir=None)
+    lim = study.limits
+    exact = {"stroke": c["max_stroke"] / lim.stroke,
+             "deceleration": c["peak_decel"] / lim.deceleration,
+             "rebound": c["rebound_speed"] / lim.rebound_speed}
+    samples = problem.steps * 2 * len(problem.legs)       # steps × (±) × legs
+    slack = math.log(samples) / 200.0
+    for name, value in exact.items():
+        r = R[CHECKS.index(name)]
+        assert np.all(r >= value - 1e-9), (name, r, value)
+        assert np.all(r <= value + slack), (name, r, value)
+
+
+@needs_cc
+def test_the_design_converges_and_the_gradient_check_passes(run):
+    run, _ = run
+    res = run["result"]
+    assert res.success, res.return_status
+    assert res.objective < res.objective_start - 0.05
+    assert res.scenarios_within() > res.scenarios_within("start")
+    for where in ("start", "optimum"):
+        g = run["gradient"][where]
+        assert g["relative"] < 1e-5, (where, g)
+        assert g["worst_row"] < 1e-4, (where, g)
+    # the crush plateau rises: the start's stroke failures are bought back
+    assert res.design["S.f1"] < -1000.0
+
+
+@needs_cc
+def test_held_out_monte_carlo_p_stable_improves(run):
+    run, _ = run
+    before, after = run["before"].p_stable(), run["after"].p_stable()
+    assert run["before"].study.seed != run["study"].pool_seed
+    assert after["stable"] > before["stable"] + 5, (before, after)
+    assert run["after"].counts()["stroke"] < run["before"].counts()["stroke"]
+
+
+@needs_cc
+def test_the_result_directory_is_complete(run):
+    run, out = run
+    data = json.loads((out / "result.json").read_text())
+    assert data["return_status"] == run["result"].return_status
+    assert data["after"]["p_stable"]["p"] == run["after"].p_stable()["p"]
+    assert set(data["multipliers"]) == {"scenarios", "checks", "bounds", "shapes"}
+    rows = (out / "scenarios.csv").read_text().splitlines()
+    assert len(rows) == 1 + len(run["indices"])
+    for name in ("before_after.png", "curves.png", "before/cases.csv", "after/summary.json"):
+        assert (out / name).is_file(), name
+
+
+@needs_cc
+def test_bad_design_arguments(run):
+    run, _ = run
+    problem = run["problem"]
+    cond = {k: v[:2] for k, v in run["pool"].conditions.items()}
+    with pytest.raises(ValueError, match="`risk`"):
+        EnvelopeDesign(problem.study, cond, run["study"].variables, risk="mean")
+    with pytest.raises(ValueError, match="`alpha`"):
+        EnvelopeDesign(problem.study, cond, run["study"].variables, alpha=1.0)
+    with pytest.raises(ValueError, match="one common, non-zero length"):
+        EnvelopeDesign(problem.study, {"vertical_speed": [1.0, 2.0], "slope_deg": [1.0]},
+                       run["study"].variables)
