@@ -194,3 +194,35 @@ def test_bad_design_arguments(run):
     with pytest.raises(ValueError, match="one common, non-zero length"):
         EnvelopeDesign(problem.study, {"vertical_speed": [1.0, 2.0], "slope_deg": [1.0]},
                        run["study"].variables)
+
+
+@needs_cc
+def test_dask_evaluation_equals_threads(run):
+    """The scenarios as Dask tasks (a local cluster of two worker processes) give the
+    threaded path's ratios and Jacobian bit for bit, and Ipopt's first iterates."""
+    distributed = pytest.importorskip("distributed")
+    import casadi as ca
+
+    run, _ = run
+    problem = run["problem"]
+    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                       dashboard_address=None, silence_logs=40)
+    client = distributed.Client(cluster)
+    try:
+        cond = {k: v[run["indices"]] for k, v in run["pool"].conditions.items()}
+        on_dask = EnvelopeDesign(problem.study, cond, run["study"].variables,
+                                 names=problem.names, horizon=problem.horizon, client=client,
+                                 cache_dir=problem.library.parents[1])
+        theta = 0.5 * (problem.initial + run["result"].theta)
+        assert np.array_equal(on_dask.ratios(theta), problem.ratios(theta))
+        x = problem.scaled(theta)
+        jac = [np.asarray(ca.Function("j", [p.nlp["x"]],
+                                      [ca.jacobian(p.nlp["g"], p.nlp["x"])])(x))
+               for p in (problem, on_dask)]
+        assert np.array_equal(jac[0], jac[1])
+        a = problem.solve(ipopt={"max_iter": 3})
+        b = on_dask.solve(ipopt={"max_iter": 3})
+        assert np.allclose(a.theta, b.theta, rtol=1e-12, atol=0)
+    finally:
+        client.close()
+        cluster.close()
