@@ -66,6 +66,10 @@ DEFAULT_HORIZON = 1.5
 #: Ipopt options of the envelope design: the design package's defaults with a
 #: looser tolerance (the losses are smooth stand-ins for classes, so 1e-6 of
 #: their scale is far below what changes a class) and fewer iterations.
+#: A bound or shape row counts as active within this distance (scaled units)
+#: and with a multiplier above it: an interior point keeps every multiplier
+#: small but non-zero.
+_ACTIVE = 1e-6
 _IPOPT = {**IPOPT_DEFAULTS, "tol": 1e-6, "acceptable_tol": 1e-4, "max_iter": 100}
 
 
@@ -344,50 +348,67 @@ class EnvelopeDesign(_DesignSpace, _GradientCheck):
                               np.full(x0.size - nv - 1, np.inf)])
         history = []
         R0 = self.ratios(self.initial)
+        best = dict(risk=self.risk_of(self.losses(self.initial))[0], theta=self.initial.copy(),
+                    iteration=-1)
 
         def on_iteration(x, f, g):
-            R = self.ratios(x[:nv] * self.scale)
-            row = dict(iteration=len(history), risk=f, seconds=time.perf_counter() - started,
-                       within=int(np.sum(np.all(R[[CHECKS.index(c) for c in self.checks]]
-                                                <= 1.0, axis=0))))
+            theta = np.clip(x[:nv] * self.scale, self.lower, self.upper)
+            R = self.ratios(theta)
+            active = R[[CHECKS.index(c) for c in self.checks]]
+            risk = self.risk_of(np.max(saturate(active, self.saturation) - 1, axis=0))[0]
+            row = dict(iteration=len(history), objective=f, risk=risk,
+                       seconds=time.perf_counter() - started,
+                       within=int(np.sum(np.all(active <= 1.0, axis=0))))
             history.append(row)
+            if risk < best["risk"]:
+                best.update(risk=risk, theta=theta, iteration=row["iteration"])
             if callable(progress):
                 progress(row)
             elif progress:
-                print(f"  iteration {row['iteration']:3d}: risk {f:+.5f}, scenarios within "
-                      f"every limit {row['within']}/{len(self.names)}, "
-                      f"{row['seconds']:.1f} s", flush=True)
+                print(f"  iteration {row['iteration']:3d}: risk {risk:+.5f} (Ipopt's objective "
+                      f"{f:+.5f}), scenarios within every limit {row['within']}/"
+                      f"{len(self.names)}, {row['seconds']:.1f} s", flush=True)
 
         options = dict(_IPOPT, **(ipopt or {}))
-        callback = _IterationCallback(x0.size, self.lbg.size, on_iteration) \
-            if progress else None
-        opts = {"ipopt": options, "print_time": False}
-        if callback is not None:
-            opts["iteration_callback"] = callback
+        opts = {"ipopt": options, "print_time": False,
+                "iteration_callback": _IterationCallback(x0.size, self.lbg.size, on_iteration)}
         solver = ca.nlpsol("robust_design", "ipopt", self.nlp, opts)
         sol = solver(x0=x0, lbx=lbx, ubx=ubx, lbg=self.lbg, ubg=self.ubg)
         stats = solver.stats()
         x = np.asarray(sol["x"], dtype=float).ravel()
-        theta = np.clip(x[:nv] * self.scale, self.lower, self.upper)
-        R = self.ratios(theta)
-        objective = self.risk_of(self.losses(theta))[0]
+        final = np.clip(x[:nv] * self.scale, self.lower, self.upper)
+        final_risk = self.risk_of(self.losses(final))[0]
+        # the rollouts are only piecewise smooth (contacts, stick–slip, branch switches):
+        # Ipopt's filter may accept a step that lowers the rows' violation at the cost of
+        # the risk, so the best design it visited is kept, not only its last one
+        theta, objective = (final, final_risk) if final_risk <= best["risk"] else \
+            (best["theta"], best["risk"])
+        chosen = "final" if theta is final else f"iteration {best['iteration']}"
         return RobustResult(
             theta=theta, var_names=list(self.var_names), return_status=stats["return_status"],
-            iterations=int(stats.get("iter_count", 0)), ratios_start=R0, ratios=R,
-            checks=list(CHECKS), scenarios=list(self.names),
+            iterations=int(stats.get("iter_count", 0)), ratios_start=R0,
+            ratios=self.ratios(theta), checks=list(CHECKS), scenarios=list(self.names),
             objective_start=self.risk_of(self.losses(self.initial))[0], objective=objective,
             multipliers=self._multipliers(np.asarray(sol["lam_g"], dtype=float).ravel(),
-                                          np.asarray(sol["lam_x"], dtype=float).ravel(), x),
+                                          np.asarray(sol["lam_x"], dtype=float).ravel(), x,
+                                          np.asarray(sol["g"], dtype=float).ravel()),
             history=history,
             timings=dict(self.timings, solve_seconds=time.perf_counter() - started,
                          ratio_calls=self._ratios.calls,
                          ratio_seconds=self._ratios.seconds,
                          jacobian_calls=self._ratios.jacobian_calls[0],
                          jacobian_seconds=self._ratios.jacobian_calls[1],
-                         threads=self.threads))
+                         threads=self.threads, design_taken=chosen,
+                         final_risk=final_risk))
 
-    def _multipliers(self, lam_g, lam_x, x) -> dict:
-        """Which scenarios, checks, bounds and shapes bind, by Ipopt's multipliers."""
+    def _multipliers(self, lam_g, lam_x, x, g) -> dict:
+        """Which scenarios, checks, bounds and shapes bind at Ipopt's last iterate.
+
+        Scenario and check entries sum the multipliers of the loss rows
+        (∂ risk/∂ relaxing that limit, per unit of the ratio); bounds and
+        shape rows are listed only when active (within :data:`_ACTIVE` of the
+        bound, scaled) with a multiplier above it.
+        """
         per_scenario, per_check = {}, {c: 0.0 for c in self.checks}
         shapes = []
         for b in self.blocks:
@@ -396,12 +417,15 @@ class EnvelopeDesign(_DesignSpace, _GradientCheck):
                 per_scenario[b.scenario] = float(lam.sum())
                 for c, value in zip(self.checks, lam):
                     per_check[c] += float(value)
-            elif np.any(np.abs(lam) > 1e-6):
-                shapes.append(dict(label=b.label, multiplier=float(np.abs(lam).max())))
+                continue
+            active = np.abs(g[b.start:b.stop] - b.lower) <= _ACTIVE
+            if np.any(active & (np.abs(lam) > _ACTIVE)):
+                shapes.append(dict(label=b.label, multiplier=float(np.abs(lam[active]).max())))
         bounds = []
         for i, name in enumerate(self.var_names):
-            if abs(lam_x[i]) > 1e-6:
-                at = "upper" if lam_x[i] > 0 else "lower"
-                bounds.append(dict(variable=name, bound=at, value=float(x[i] * self.scale[i]),
-                                   multiplier=float(lam_x[i])))
+            value = x[i] * self.scale[i]
+            for side, limit in (("lower", self.lower[i]), ("upper", self.upper[i])):
+                if abs(value - limit) <= _ACTIVE * self.scale[i] and abs(lam_x[i]) > _ACTIVE:
+                    bounds.append(dict(variable=name, bound=side, value=float(value),
+                                       multiplier=float(lam_x[i])))
         return dict(scenarios=per_scenario, checks=per_check, bounds=bounds, shapes=shapes)
