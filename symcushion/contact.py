@@ -198,6 +198,7 @@ def _build(method, friction):
         [out[key] for key in OUTPUT_NAMES],
         INPUT_NAMES,
         OUTPUT_NAMES,
+        {"cse": True},
     )
 
 

@@ -284,7 +284,7 @@ def build_model(scene: Scene) -> StepModel:
     y = yl.pack(acceleration=acc1, **{f.name: [o[f.name] for o in outputs]
                                        for f in yl.leg_fields})
     step = ca.Function("touchdown_step", [X, p, h], [x_next, y], ["x", "p", "dt"],
-                       ["x_next", "y"])
+                       ["x_next", "y"], {"cse": True})
     return StepModel(step=step, scene=scene, nx=nx, ny=ny, np=params.size, param_names=names,
                      params=params)
 
