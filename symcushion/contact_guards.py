@@ -21,6 +21,8 @@ import casadi as ca
 __all__ = [
     "CONE_TOL",
     "TINY",
+    "at_least",
+    "at_most",
     "cone_clean",
     "cone_gap",
     "cone_value",
@@ -31,6 +33,7 @@ __all__ = [
     "safe_sqrt",
     "sign_plus",
     "unit",
+    "within",
 ]
 
 # Relative tolerance of the cone tests C(P) <= CONE_TOL*|P|^2 in the robust
@@ -43,9 +46,33 @@ CONE_TOL = 1e-12
 TINY = 1e-300
 
 
+# Comparisons and clamps without fabs, fmin or fmax: the generated C calls
+# libm (or CasADi's helper) for each of those, and a call spills every live
+# floating-point register, while a comparison and a select stay in registers.
+# Each helper gives the bits of the expression it replaces, NaN included.
+def within(x, bound):
+    """|x| <= bound, as two comparisons (False for NaN, as the fabs form)."""
+    return ca.logic_and(x <= bound, x >= -bound)
+
+
+def _exceeds(x, bound):
+    """|x| > bound, as two comparisons (False for NaN, as the fabs form)."""
+    return ca.logic_or(x > bound, x < -bound)
+
+
+def at_least(x, low):
+    """fmax(x, low) for a number `low`: x where x > low, else low (low also for a NaN x)."""
+    return ca.if_else(x > low, x, low)
+
+
+def at_most(x, high):
+    """fmin(x, high) for a number `high`: x where x < high, else high (high also for a NaN x)."""
+    return ca.if_else(x < high, x, high)
+
+
 def safe_div(a, b):
     """a/b, and 0 where |b| <= TINY; the untaken branch divides by 1."""
-    ok = ca.fabs(b) > TINY
+    ok = _exceeds(b, TINY)
     return ca.if_else(ok, a / ca.if_else(ok, b, 1.0), 0.0)
 
 
