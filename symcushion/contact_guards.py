@@ -26,6 +26,7 @@ __all__ = [
     "cone_clean",
     "cone_gap",
     "cone_value",
+    "exceeds",
     "lift_off",
     "on_cone",
     "safe_div",
@@ -46,33 +47,40 @@ CONE_TOL = 1e-12
 TINY = 1e-300
 
 
-# Comparisons and clamps without fabs, fmin or fmax: the generated C calls
-# libm (or CasADi's helper) for each of those, and a call spills every live
+# Comparisons and clamps without fabs, fmin or fmax: the generated C calls a
+# helper or libm for each of those, and a call spills every live
 # floating-point register, while a comparison and a select stay in registers.
-# Each helper gives the bits of the expression it replaces, NaN included.
 def within(x, bound):
-    """|x| <= bound, as two comparisons (False for NaN, as the fabs form)."""
+    """|x| <= bound as two comparisons: the same flag as the fabs form, NaN included."""
     return ca.logic_and(x <= bound, x >= -bound)
 
 
-def _exceeds(x, bound):
-    """|x| > bound, as two comparisons (False for NaN, as the fabs form)."""
+def exceeds(x, bound):
+    """|x| > bound as two comparisons: the same flag as the fabs form, NaN included."""
     return ca.logic_or(x > bound, x < -bound)
 
 
 def at_least(x, low):
-    """fmax(x, low) for a number `low`: x where x > low, else low (low also for a NaN x)."""
+    """max(x, low) for a number `low` (not NaN): x where x > low, else low.
+
+    The value of fmax(x, low), also for a NaN x (low); only the sign of a
+    zero result may differ (an SX select adds the branch to a zero).
+    """
     return ca.if_else(x > low, x, low)
 
 
 def at_most(x, high):
-    """fmin(x, high) for a number `high`: x where x < high, else high (high also for a NaN x)."""
+    """min(x, high) for a number `high` (not NaN): x where x < high, else high.
+
+    The value of fmin(x, high), also for a NaN x (high); only the sign of a
+    zero result may differ.
+    """
     return ca.if_else(x < high, x, high)
 
 
 def safe_div(a, b):
     """a/b, and 0 where |b| <= TINY; the untaken branch divides by 1."""
-    ok = _exceeds(b, TINY)
+    ok = exceeds(b, TINY)
     return ca.if_else(ok, a / ca.if_else(ok, b, 1.0), 0.0)
 
 

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import casadi as ca
 
-from .contact_guards import (CONE_TOL, TINY, at_least, at_most, lift_off, safe_div, safe_sqrt,
-                             sign_plus, unit, within)
+from .contact_guards import (CONE_TOL, TINY, at_least, at_most, exceeds, lift_off, safe_div,
+                             safe_sqrt, sign_plus, unit, within)
 from .contact_quartic import quartic_roots
 
 __all__ = [
@@ -112,7 +112,7 @@ def _secular_slip(lam, K11, K12, K21, K22, T, K_norm):
     Returns (g1, g2, ok), ok False at a root of det(K + lam I) (to DET_TOL).
     """
     det = lam * lam + (K11 + K22) * lam + (K11 * K22 - K12 * K21)
-    ok = ca.logic_not(within(det, DET_TOL * (lam + K_norm) ** 2))
+    ok = exceeds(det, DET_TOL * (lam + K_norm) ** 2)
     inv = 1.0 / ca.if_else(ok, det, 1.0)
     return (lam + K22) * T * inv, -K21 * T * inv, ok
 
@@ -152,7 +152,7 @@ def _family_slips(K11, K12, K21, K22, a1, a2, T, N_t, mu, K_norm):
     M11 = K11 + lam
     ok = ca.logic_and(
         ca.logic_and(within(K21, DET_TOL * K_norm), lam > 0),
-        ca.logic_not(within(M11, DET_TOL * (lam + K_norm))),
+        exceeds(M11, DET_TOL * (lam + K_norm)),
     )
     inv = 1.0 / ca.if_else(ok, M11, 1.0)
     alpha, beta = T * inv, -K12 * inv
@@ -166,8 +166,8 @@ def _family_slips(K11, K12, K21, K22, a1, a2, T, N_t, mu, K_norm):
     ok = ca.logic_and(ok, disc >= 0)
     q = -(B + sign_plus(B) * safe_sqrt(disc))  # stable roots q/A and C/q
     out = []
-    for s, s_ok in ((safe_div(q, A), ca.logic_not(within(A, TINY))),
-                    (safe_div(C, q), ca.logic_not(within(q, TINY)))):
+    for s, s_ok in ((safe_div(q, A), exceeds(A, TINY)),
+                    (safe_div(C, q), exceeds(q, TINY))):
         out.append((lam, alpha + beta * s, s, ca.logic_and(ok, s_ok)))
     return out
 

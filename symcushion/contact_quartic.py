@@ -35,7 +35,7 @@ import math
 
 import casadi as ca
 
-from .contact_guards import TINY, at_least, at_most, safe_div, safe_sqrt, within
+from .contact_guards import TINY, at_least, at_most, exceeds, safe_div, safe_sqrt
 
 __all__ = ["POLISH_STEPS", "quartic_roots"]
 
@@ -58,7 +58,7 @@ _sqrt = safe_sqrt
 
 def _cbrt(x):
     """Real cube root, sign(x) |x|^(1/3), guarded at 0."""
-    ok = ca.logic_not(within(x, _TINY))
+    ok = exceeds(x, _TINY)
     mag = ca.power(ca.if_else(ok, ca.fabs(x), 1.0), 1.0 / 3.0)
     return ca.if_else(ok, ca.sign(x) * mag, 0.0)
 
