@@ -4,9 +4,11 @@ This module owns the branch-free building blocks of the contact steps:
 division, square root, norm and unit vector guarded so that the branch a
 ``casadi.if_else`` does not take can produce neither NaN nor inf, in values
 or in derivatives (SX evaluates, and differentiates, both branches); the
-friction cone (1.4)-(1.5) as a value, a distance and a projection; and the
-lift-off replacement of a step's outputs. It also owns the two tolerances
-these use, ``TINY`` and ``CONE_TOL``.
+friction cone (1.4)-(1.5) as a value, a distance and a projection; the
+lift-off replacement of a step's outputs; and the comparisons and clamps
+written without fabs, fmin or fmax (``within``, ``exceeds``, ``at_least``,
+``at_most``), which the generated C would otherwise call as functions. It
+also owns the two tolerances these use, ``TINY`` and ``CONE_TOL``.
 
 It must not implement a contact step, choose between steps, or convert to
 NumPy: ``symcushion.contact_paper``, ``contact_robust`` and
