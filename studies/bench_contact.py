@@ -250,7 +250,9 @@ def native_ratio(cases, called=False):
     (``CFLAGS``: -O3) and timed by ``symcushion/c/bench_contact.c`` (a loop
     over the cases calling each generated function, clock_gettime), in one
     process run per repeat, best of BEST_OF runs. With ``called``, the steps
-    as the simulator calls them (:func:`called_program`).
+    as the simulator calls them (:func:`called_program`). Returns the best ns
+    per evaluation by Function name, and under ``"outputs"`` the bytes the
+    harness wrote (every step's outputs on every case).
     """
     P0, Dp, n, l, mu, u0 = stack(cases)
     count = P0.shape[1]
@@ -272,6 +274,7 @@ def native_ratio(cases, called=False):
             for line in run.stdout.splitlines():
                 name, value = line.split()
                 best[name] = min(best.get(name, np.inf), float(value.split("=")[1]))
+        best["outputs"] = (out / "out.bin").read_bytes()
     return best
 
 
@@ -383,6 +386,7 @@ def main() -> None:
     table_b = cost_table(cost(spatial))
     ns = native_ratio(spatial[:NATIVE_CASES])
     called = native_ratio(spatial[:NATIVE_CASES], called=True)
+    same = ns.pop("outputs") == called.pop("outputs")
     environment = (f"CasADi {ca.__version__} on {platform.machine()} "
                    f"({platform.python_implementation()} {platform.python_version()}), "
                    f"serial map, best of {BEST_OF} repeats.")
@@ -401,7 +405,8 @@ def main() -> None:
         "(`contact_step_call`): the implicit step runs its stick test first and the "
         "slip part only when the trial force does not stick (`Function.conditional`); "
         "the paper and robust calls have no such shortcut. "
-        f"{stick_share(spatial[:NATIVE_CASES])}",
+        f"{stick_share(spatial[:NATIVE_CASES])} The two libraries' outputs are "
+        f"{'the same bits' if same else 'NOT the same bits'}.",
         native_table(ns, called),
     ])
     print(body)
