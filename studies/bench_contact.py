@@ -27,13 +27,17 @@ Method:
   BEST_OF repeats.
 - Compiled cost: the steps generated into one C library at -O3 and timed
   in one C harness (``symcushion/c/bench_contact.c``) on the same cases:
-  ns per evaluation and the implicit/robust ratio.
+  ns per evaluation and the implicit/robust ratio; also the steps as the
+  simulator calls them (``contact_step_call``: the implicit step skips its
+  slip part for a sticking foot), in a second library timed by the same
+  harness.
 
 Output: Markdown tables on stdout, also written to ``docs/contact.md`` under
 "Benchmark". Run: ``python studies/bench_contact.py``.
 """
 from __future__ import annotations
 
+import os
 import platform
 import subprocess
 import tempfile
@@ -44,7 +48,8 @@ import casadi as ca
 import numpy as np
 
 from symcushion import codegen, report
-from symcushion.contact import METHODS, OUTPUT_NAMES, contact_step, stack_inputs
+from symcushion.contact import (INPUT_NAMES, METHODS, OUTPUT_NAMES, contact_step, contact_step_call,
+                                stack_inputs)
 
 #: Random cases per family.
 CASES = 20000
@@ -59,6 +64,10 @@ NATIVE_CASES = 2000
 C_REPEAT = 20
 
 DOC = Path(__file__).resolve().parent.parent / "docs" / "contact.md"
+#: The C timing loop (symcushion/c/bench_contact.c).
+HARNESS = Path(codegen.__file__).parent / "c" / "bench_contact.c"
+#: Shapes of the contact step's inputs, in INPUT_NAMES order.
+INPUT_SHAPES = ((3, 1), (3, 3), (3, 1), (3, 1), (1, 1), (3, 1))
 SECTION = "Benchmark"
 
 
@@ -205,13 +214,45 @@ def stack_matrices(cases):
     return np.stack([c[1] for c in cases], axis=2)
 
 
-def native_ratio(cases):
-    """ns per evaluation of the robust and implicit steps in one C harness (-O3), same cases.
+def called_program(out: Path) -> Path:
+    """The C harness on the three steps as the simulator calls them.
+
+    Each ``contact_step_<method>`` of this library is an SX Function holding
+    one call of ``contact_step_call(method, ...)``: for the implicit step the
+    stick test and then, through ``Function.conditional``, either the stick
+    branch or the full step; for the paper and robust steps the full step
+    (they have no such shortcut). Generated with ``codegen.CODEGEN_OPTIONS``
+    and compiled with ``codegen.CFLAGS``, as the kernels.
+    """
+    functions = []
+    for method in METHODS:
+        args = [ca.SX.sym(name, *shape) for name, shape in zip(INPUT_NAMES, INPUT_SHAPES)]
+        step = contact_step_call(method, *args, friction=True)
+        functions.append(ca.Function(f"contact_step_{method}", args,
+                                     [step[key] for key in OUTPUT_NAMES], INPUT_NAMES,
+                                     OUTPUT_NAMES))
+    generator = ca.CodeGenerator("symcushion_kernels.c", dict(codegen.CODEGEN_OPTIONS))
+    for f in functions:
+        generator.add(f)
+    generator.generate(str(out) + os.sep)
+    (out / "symcushion.h").write_text('#include "symcushion_kernels.h"\n')
+    program = out / "bench_contact"
+    subprocess.run([codegen.find_compiler(), *codegen.CFLAGS, "-I", str(out), str(HARNESS),
+                    str(out / "symcushion_kernels.c"), "-o", str(program), "-lm"],
+                   check=True, capture_output=True)
+    return program
+
+
+def native_ratio(cases, called=False):
+    """ns per evaluation of the three steps in one C harness (-O3), same cases.
 
     The three steps are generated into one library by ``symcushion.codegen``
     (``CFLAGS``: -O3) and timed by ``symcushion/c/bench_contact.c`` (a loop
     over the cases calling each generated function, clock_gettime), in one
-    process run per repeat, best of BEST_OF runs.
+    process run per repeat, best of BEST_OF runs. With ``called``, the steps
+    as the simulator calls them (:func:`called_program`). Returns the best ns
+    per evaluation by Function name, and under ``"outputs"`` the bytes the
+    harness wrote (every step's outputs on every case).
     """
     P0, Dp, n, l, mu, u0 = stack(cases)
     count = P0.shape[1]
@@ -221,16 +262,29 @@ def native_ratio(cases):
     best = {}
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp)
-        codegen.generate(out, build=True)
         np.ascontiguousarray(table, dtype=np.float64).tofile(out / "cases.bin")
-        program = codegen.build_program(out, Path(codegen.__file__).parent / "c" / "bench_contact.c")
+        if called:
+            program = called_program(out)
+        else:
+            codegen.generate(out, build=True)
+            program = codegen.build_program(out, HARNESS)
         for _ in range(BEST_OF):
             run = subprocess.run([str(program), str(out / "cases.bin"), str(C_REPEAT),
                                   str(out / "out.bin")], capture_output=True, text=True, check=True)
             for line in run.stdout.splitlines():
                 name, value = line.split()
                 best[name] = min(best.get(name, np.inf), float(value.split("=")[1]))
+        best["outputs"] = (out / "out.bin").read_bytes()
     return best
+
+
+def stick_share(cases):
+    """A sentence: how many of the cases stick, slip and lift off in the implicit step."""
+    out = evaluate(contact_step("implicit"), cases)
+    contact = out["contact"][0] == 1
+    slip = contact & (np.linalg.norm(out["k"], axis=0) > 0)
+    return (f"Of the {len(cases)} cases the implicit step sticks in {int((contact & ~slip).sum())}, "
+            f"slips in {int(slip.sum())} and lifts off in {int((~contact).sum())}.")
 
 
 def evals_per_second(call, evals_per_call):
@@ -293,11 +347,15 @@ def cost_table(rows):
     return "\n".join(lines)
 
 
-def native_table(ns):
-    rows = ["| Function (C, -O3) | ns per evaluation |", "|---|---:|"]
-    rows += [f"| `{name}` | {value:.0f} |" for name, value in ns.items()]
+def native_table(ns, called):
+    rows = ["| Function (C, -O3) | branch-free graph: ns per evaluation "
+            "| as the simulator calls it: ns per evaluation |", "|---|---:|---:|"]
+    rows += [f"| `{name}` | {value:.0f} | {called[name]:.0f} |" for name, value in ns.items()]
     ratio = ns["contact_step_implicit"] / ns["contact_step_robust"]
-    return "\n".join(rows) + f"\n\nimplicit / robust per evaluation: **{ratio:.2f}** (target ≤ 1.5)."
+    ratio_called = called["contact_step_implicit"] / called["contact_step_robust"]
+    return "\n".join(rows) + (
+        f"\n\nimplicit / robust per evaluation: **{ratio:.2f}** (target ≤ 1.5); "
+        f"as called by the simulator: {ratio_called:.2f}.")
 
 
 def breakdown_text(b):
@@ -327,6 +385,8 @@ def main() -> None:
     breakdown = breakdown_text(robust_breakdown(plane))
     table_b = cost_table(cost(spatial))
     ns = native_ratio(spatial[:NATIVE_CASES])
+    called = native_ratio(spatial[:NATIVE_CASES], called=True)
+    same = ns.pop("outputs") == called.pop("outputs")
     environment = (f"CasADi {ca.__version__} on {platform.machine()} "
                    f"({platform.python_implementation()} {platform.python_version()}), "
                    f"serial map, best of {BEST_OF} repeats.")
@@ -340,8 +400,14 @@ def main() -> None:
         "### Compiled, one C harness",
         f"The three steps compiled at -O3 into one library and timed in one C loop over "
         f"the same {NATIVE_CASES} random 3-D cases, best of {BEST_OF} runs "
-        f"({C_REPEAT} passes each; a loaded 2-core machine: ratios from one run).",
-        native_table(ns),
+        f"({C_REPEAT} passes each; a loaded 2-core machine: ratios from one run). "
+        "The second column times the steps as `symcushion.simulate` calls them "
+        "(`contact_step_call`): the implicit step runs its stick test first and the "
+        "slip part only when the trial force does not stick (`Function.conditional`); "
+        "the paper and robust calls have no such shortcut. "
+        f"{stick_share(spatial[:NATIVE_CASES])} The two libraries' outputs are "
+        f"{'the same bits' if same else 'NOT the same bits'}.",
+        native_table(ns, called),
     ])
     print(body)
     write_section(DOC, SECTION, body)

@@ -176,10 +176,14 @@ def contact_step_expr(method, P0, Dp, n, l, mu, u0, *, friction=None):
     u0 = _as_sx(u0, "u0", (3, 1))
     mu = _as_sx(mu, "mu", (1, 1)) if friction else ca.SX(0.0)
     if method == "paper":
-        return paper_step(P0, Dp, n, l, mu, u0)
-    if method == "robust":
-        return robust_step(P0, Dp, n, l, mu, u0, friction)
-    return implicit_step(P0, Dp, n, l, mu, u0, friction)
+        out = paper_step(P0, Dp, n, l, mu, u0)
+    elif method == "robust":
+        out = robust_step(P0, Dp, n, l, mu, u0, friction)
+    else:
+        out = implicit_step(P0, Dp, n, l, mu, u0, friction)
+    # The same operation on the same operands once (the guards and the
+    # candidates build some twice); values are unchanged to the bit.
+    return dict(zip(OUTPUT_NAMES, ca.cse([out[key] for key in OUTPUT_NAMES])))
 
 
 @functools.lru_cache(maxsize=None)

@@ -4,9 +4,11 @@ This module owns the branch-free building blocks of the contact steps:
 division, square root, norm and unit vector guarded so that the branch a
 ``casadi.if_else`` does not take can produce neither NaN nor inf, in values
 or in derivatives (SX evaluates, and differentiates, both branches); the
-friction cone (1.4)-(1.5) as a value, a distance and a projection; and the
-lift-off replacement of a step's outputs. It also owns the two tolerances
-these use, ``TINY`` and ``CONE_TOL``.
+friction cone (1.4)-(1.5) as a value, a distance and a projection; the
+lift-off replacement of a step's outputs; and the comparisons and clamps
+written without fabs, fmin or fmax (``within``, ``exceeds``, ``at_least``,
+``at_most``), which the generated C would otherwise call as functions. It
+also owns the two tolerances these use, ``TINY`` and ``CONE_TOL``.
 
 It must not implement a contact step, choose between steps, or convert to
 NumPy: ``symcushion.contact_paper``, ``contact_robust`` and
@@ -21,9 +23,12 @@ import casadi as ca
 __all__ = [
     "CONE_TOL",
     "TINY",
+    "at_least",
+    "at_most",
     "cone_clean",
     "cone_gap",
     "cone_value",
+    "exceeds",
     "lift_off",
     "on_cone",
     "safe_div",
@@ -31,6 +36,7 @@ __all__ = [
     "safe_sqrt",
     "sign_plus",
     "unit",
+    "within",
 ]
 
 # Relative tolerance of the cone tests C(P) <= CONE_TOL*|P|^2 in the robust
@@ -43,9 +49,40 @@ CONE_TOL = 1e-12
 TINY = 1e-300
 
 
+# Comparisons and clamps without fabs, fmin or fmax: the generated C calls a
+# helper or libm for each of those, and a call spills every live
+# floating-point register, while a comparison and a select stay in registers.
+def within(x, bound):
+    """|x| <= bound as two comparisons: the same flag as the fabs form, NaN included."""
+    return ca.logic_and(x <= bound, x >= -bound)
+
+
+def exceeds(x, bound):
+    """|x| > bound as two comparisons: the same flag as the fabs form, NaN included."""
+    return ca.logic_or(x > bound, x < -bound)
+
+
+def at_least(x, low):
+    """max(x, low) for a number `low` (not NaN): x where x > low, else low.
+
+    The value of fmax(x, low), also for a NaN x (low); only the sign of a
+    zero result may differ (an SX select adds the branch to a zero).
+    """
+    return ca.if_else(x > low, x, low)
+
+
+def at_most(x, high):
+    """min(x, high) for a number `high` (not NaN): x where x < high, else high.
+
+    The value of fmin(x, high), also for a NaN x (high); only the sign of a
+    zero result may differ.
+    """
+    return ca.if_else(x < high, x, high)
+
+
 def safe_div(a, b):
     """a/b, and 0 where |b| <= TINY; the untaken branch divides by 1."""
-    ok = ca.fabs(b) > TINY
+    ok = exceeds(b, TINY)
     return ca.if_else(ok, a / ca.if_else(ok, b, 1.0), 0.0)
 
 

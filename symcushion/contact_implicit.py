@@ -13,7 +13,8 @@ from __future__ import annotations
 
 import casadi as ca
 
-from .contact_guards import CONE_TOL, TINY, lift_off, safe_div, safe_sqrt, sign_plus, unit
+from .contact_guards import (CONE_TOL, TINY, at_least, at_most, exceeds, lift_off, safe_div,
+                             safe_sqrt, sign_plus, unit, within)
 from .contact_quartic import quartic_roots
 
 __all__ = [
@@ -100,7 +101,7 @@ def _coulomb_check(lam, g1, g2, ok, a1, a2, N_t, mu, N_min):
     N_scale = ca.fabs(N_t) + ca.fabs(a1 * g1) + ca.fabs(a2 * g2)
     valid = ca.logic_and(
         ca.logic_and(ok, N > N_min),
-        ca.fabs(lhs - rhs) <= ROOT_TOL * (lhs + rhs) + CANCEL_TOL * mu * mu * N_scale * N_scale,
+        within(lhs - rhs, ROOT_TOL * (lhs + rhs) + CANCEL_TOL * mu * mu * N_scale * N_scale),
     )
     return valid
 
@@ -111,7 +112,7 @@ def _secular_slip(lam, K11, K12, K21, K22, T, K_norm):
     Returns (g1, g2, ok), ok False at a root of det(K + lam I) (to DET_TOL).
     """
     det = lam * lam + (K11 + K22) * lam + (K11 * K22 - K12 * K21)
-    ok = ca.fabs(det) > DET_TOL * (lam + K_norm) ** 2
+    ok = exceeds(det, DET_TOL * (lam + K_norm) ** 2)
     inv = 1.0 / ca.if_else(ok, det, 1.0)
     return (lam + K22) * T * inv, -K21 * T * inv, ok
 
@@ -150,8 +151,8 @@ def _family_slips(K11, K12, K21, K22, a1, a2, T, N_t, mu, K_norm):
     lam = -K22
     M11 = K11 + lam
     ok = ca.logic_and(
-        ca.logic_and(ca.fabs(K21) <= DET_TOL * K_norm, lam > 0),
-        ca.fabs(M11) > DET_TOL * (lam + K_norm),
+        ca.logic_and(within(K21, DET_TOL * K_norm), lam > 0),
+        exceeds(M11, DET_TOL * (lam + K_norm)),
     )
     inv = 1.0 / ca.if_else(ok, M11, 1.0)
     alpha, beta = T * inv, -K12 * inv
@@ -165,7 +166,8 @@ def _family_slips(K11, K12, K21, K22, a1, a2, T, N_t, mu, K_norm):
     ok = ca.logic_and(ok, disc >= 0)
     q = -(B + sign_plus(B) * safe_sqrt(disc))  # stable roots q/A and C/q
     out = []
-    for s, s_ok in ((safe_div(q, A), ca.fabs(A) > TINY), (safe_div(C, q), ca.fabs(q) > TINY)):
+    for s, s_ok in ((safe_div(q, A), exceeds(A, TINY)),
+                    (safe_div(C, q), exceeds(q, TINY))):
         out.append((lam, alpha + beta * s, s, ca.logic_and(ok, s_ok)))
     return out
 
@@ -193,7 +195,7 @@ def _quartic(K11, K12, K21, K22, a1, a2, T, N_t, mu, K_norm):
     stiff = K_norm + mu * safe_sqrt(a1 * a1 + a2 * a2)
     stiff = ca.if_else(stiff > TINY, stiff, 1.0)
     mean = safe_sqrt(safe_sqrt(safe_div(ca.fabs(Q[0]), ca.fabs(Q[4]))))
-    return Q, ca.fmin(ca.fmax(mean, stiff / ROOT_SCALE_RANGE), stiff * ROOT_SCALE_RANGE)
+    return Q, at_most(at_least(mean, stiff / ROOT_SCALE_RANGE), stiff * ROOT_SCALE_RANGE)
 
 
 def _polish_root(Q, lam):
@@ -206,7 +208,7 @@ def _polish_root(Q, lam):
     for _ in range(FINAL_STEPS):
         f = (((Q[4] * lam + Q[3]) * lam + Q[2]) * lam + Q[1]) * lam + Q[0]
         df = ((4 * Q[4] * lam + 3 * Q[3]) * lam + 2 * Q[2]) * lam + Q[1]
-        lam = lam - ca.fmin(ca.fmax(safe_div(f, df), -FINAL_CLIP * lam), FINAL_CLIP * lam)
+        lam = lam - at_most(at_least(safe_div(f, df), -FINAL_CLIP * lam), FINAL_CLIP * lam)
     return lam
 
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import casadi as ca
 
-from .contact_guards import cone_value, safe_div, safe_sqrt, unit
+from .contact_guards import at_least, at_most, cone_value, safe_div, safe_sqrt, unit
 
 __all__ = ["paper_step"]
 
@@ -44,7 +44,7 @@ def _cone_entry(P0, Dp, n, l, c, Dl):
     k2 = ca.SX(1.0)  # no root in (0, 1): k2 = 1
     for exists, lam in roots:
         counts = ca.logic_and(exists, ca.logic_and(lam > 0, lam < 1))
-        k2 = ca.if_else(counts, ca.fmin(k2, lam), k2)
+        k2 = ca.if_else(counts, at_most(k2, lam), k2)
     k2 = ca.if_else(ca.logic_and(C2 < 0, N2 > 0), 0.0, k2)  # (1.11)
     return k2, l_tau
 
@@ -68,7 +68,7 @@ def _final_slip(P0, Dp, n, l, c, k1, s, k2, l_tau):
     H = ca.dot(P3 - N3 * n, Pe - Ne * n)  # (1.14)
     # (1.15); the max(., 0) is the one departure from print (docs/paper-notes.md §3.3).
     A3_div = ca.if_else(A3 != 0, A3, 1.0)
-    k3_quadratic = (-B3 + safe_sqrt(ca.fmax(B3**2 - A3 * C3, 0.0)) * ca.sign(H)) / A3_div
+    k3_quadratic = (-B3 + safe_sqrt(at_least(B3**2 - A3 * C3, 0.0)) * ca.sign(H)) / A3_div
     k3_linear = safe_div(-C3, 2 * B3)  # (1.15), A3 = 0
     k3 = ca.if_else(A3 != 0, k3_quadratic, ca.if_else(B3 != 0, k3_linear, 0.0))
     k3 = ca.if_else(C3 > 0, k3, 0.0)
@@ -95,7 +95,7 @@ def paper_step(P0, Dp, n, l, mu, u0):
     den = ca.dot(P0, Ds) - c * N0 * ca.dot(n, Ds)  # (1.9)
     k1 = safe_div(num, den)
     ub = safe_div(ca.dot(s, u0), ca.dot(s, s))  # (1.10)
-    k1 = ca.fmin(ca.fmax(k1, 0.0), ca.fmax(ub, 0.0))  # empty interval -> 0
+    k1 = at_most(at_least(k1, 0.0), at_least(ub, 0.0))  # empty interval -> 0
     k1 = ca.if_else(C0 > 0, k1, 0.0)
 
     k2, l_tau = _cone_entry(P0, Dp, n, l, c, Dl)

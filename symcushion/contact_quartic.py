@@ -35,7 +35,7 @@ import math
 
 import casadi as ca
 
-from .contact_guards import TINY, safe_div, safe_sqrt
+from .contact_guards import TINY, at_least, at_most, exceeds, safe_div, safe_sqrt
 
 __all__ = ["POLISH_STEPS", "quartic_roots"]
 
@@ -58,7 +58,7 @@ _sqrt = safe_sqrt
 
 def _cbrt(x):
     """Real cube root, sign(x) |x|^(1/3), guarded at 0."""
-    ok = ca.fabs(x) > _TINY
+    ok = exceeds(x, _TINY)
     mag = ca.power(ca.if_else(ok, ca.fabs(x), 1.0), 1.0 / 3.0)
     return ca.if_else(ok, ca.sign(x) * mag, 0.0)
 
@@ -76,7 +76,7 @@ def _largest_cubic_root(A, B, C):
     arg = _div(-Qc, 2 * m**3)
     # acos has an infinite slope at +-1: evaluate it strictly inside, and
     # take its limits 0 and pi outside (SX differentiates untaken branches).
-    inside = ca.fabs(arg) < 1
+    inside = ca.logic_and(arg < 1, arg > -1)  # |arg| < 1
     angle = ca.if_else(inside, ca.acos(ca.if_else(inside, arg, 0.0)), ca.if_else(arg > 0, 0.0, ca.pi))
     w_three = 2 * m * ca.cos(angle / 3)
     z = ca.if_else(disc > 0, w_one, w_three) - A / 3
@@ -127,7 +127,7 @@ def quartic_roots(Q, c):
     r1 = d - b * cc / 2 + b**3 / 8
     r0 = e - b * d / 4 + b * b * cc / 16 - 3 * b**4 / 256
     # resolvent z^3 + 2p z^2 + (p^2 - 4 r0) z - r1^2 = 0 has a root z >= 0
-    z = ca.fmax(_largest_cubic_root(2 * p, p * p - 4 * r0, -r1 * r1), 0.0)
+    z = at_least(_largest_cubic_root(2 * p, p * p - 4 * r0, -r1 * r1), 0.0)
     s = _sqrt(z)
     # (y^2 + s y + alpha)(y^2 - s y + beta), alpha + beta = p + z,
     # beta - alpha = r1/s = sign(r1) sqrt((p + z)^2 - 4 r0) (no division by s)
@@ -146,7 +146,7 @@ def quartic_roots(Q, c):
     rev = list(reversed(q))  # in c/lambda: sum_k q_k x^(4-k)
     out = []
     for t in roots_t:
-        t = ca.fmin(ca.fmax(t, 0.0), 1.0)
+        t = at_most(at_least(t, 0.0), 1.0)
         small = t <= 0.5
         # x = lambda/c = t/(1 - t) for t <= 1/2, x = c/lambda = (1 - t)/t else
         x = ca.if_else(small, _div(t, 1 - t), _div(1 - t, t))
@@ -154,6 +154,6 @@ def quartic_roots(Q, c):
         for _ in range(POLISH_STEPS):
             f, df = _horner(coeffs, x)
             # kept in [0, X_MAX]: a step thrown far by a flat Q cannot overflow
-            x = ca.fmin(ca.fmax(x - _div(f, df), 0.0), X_MAX)
+            x = at_most(at_least(x - _div(f, df), 0.0), X_MAX)
         out.append(c * ca.if_else(small, x, _div(1.0, x)))
     return out

@@ -51,6 +51,7 @@ import casadi as ca
 import numpy as np
 
 from .contact import contact_step_call
+from .contact_guards import at_least, at_most
 from .layout import (BODY_OUT, BODY_STATE, LEG_OUT, LEG_STATE, MODES, ParamLayout, default_p,
                      output_layout, param_layout, quat_exp, quat_mul, quat_to_rot,
                      quat_to_rot_np, state_layout)
@@ -228,7 +229,7 @@ def build_model(scene: Scene) -> StepModel:
         d1, _, _ = closest_obstacle(scene.obstacles, free1)
         crossing = d0 - d1
         tau = ca.if_else(crossing > 0, d0 / ca.if_else(crossing > 0, crossing, 1.0), 0.0)
-        tau = ca.fmin(ca.fmax(tau, 0.0), 1.0)
+        tau = at_most(at_least(tau, 0.0), 1.0)
         _, _, touch = closest_obstacle(scene.obstacles, free0 + tau * (free1 - free0))
         touches = d1 < 0
         active = ca.logic_or(in_contact, touches)
@@ -284,7 +285,7 @@ def build_model(scene: Scene) -> StepModel:
     y = yl.pack(acceleration=acc1, **{f.name: [o[f.name] for o in outputs]
                                        for f in yl.leg_fields})
     step = ca.Function("touchdown_step", [X, p, h], [x_next, y], ["x", "p", "dt"],
-                       ["x_next", "y"])
+                       ["x_next", "y"], {"cse": True})
     return StepModel(step=step, scene=scene, nx=nx, ny=ny, np=params.size, param_names=names,
                      params=params)
 
