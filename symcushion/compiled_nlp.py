@@ -56,7 +56,8 @@ DEFAULT_CACHE = Path("build") / "design"
 #: runs 3× faster than at -O0 for 3× the compile time, and -O2/-O3 gain
 #: nothing more (``python studies/bench_design.py --opt-levels
 #: studies/absorber_1d.toml``, table in docs/optimise.md).
-COMPILE_FLAGS = ("-O1", "-std=c99", "-fPIC", "-fno-math-errno", "-ffp-contract=off")
+COMPILE_FLAGS = ("-O1", "-std=c99", "-fPIC", "-fno-semantic-interposition", "-fno-math-errno",
+                 "-ffp-contract=off")
 
 #: Forward directions per derivative pass of the rollout (CasADi's
 #: ``max_num_dir``). One direction keeps the generated Jacobian small (the

@@ -20,6 +20,7 @@ import casadi as ca
 import numpy as np
 
 from ..codegen import compile_cached
+from ..compiled_nlp import COMPILE_FLAGS   # -O1: the design library's flags
 from .margins import margins_function
 
 __all__ = ["DEFAULT_CACHE", "MARGINS", "build_margins", "ScenarioRatios"]
@@ -28,9 +29,6 @@ __all__ = ["DEFAULT_CACHE", "MARGINS", "build_margins", "ScenarioRatios"]
 DEFAULT_CACHE = Path("build") / "robust"
 #: Name of the compiled ratios Function; its Jacobian in w is ``MARGINS + "_jac"``.
 MARGINS = "touchdown_margins"
-#: gcc flags: -O1, as the design library (docs/optimise.md: -O2/-O3 gain
-#: nothing on the rollout Jacobians and take longer to compile).
-_CFLAGS = ("-O1", "-std=c99", "-fPIC", "-fno-math-errno", "-ffp-contract=off")
 
 
 def build_margins(model, steps: int, limits: dict, design: np.ndarray, *, sharpness: float,
@@ -67,7 +65,7 @@ def build_margins(model, steps: int, limits: dict, design: np.ndarray, *, sharpn
                            Path(DEFAULT_CACHE if cache_dir is None else cache_dir),
                            "".join(c if c.isalnum() or c in "-_" else "_" for c in name),
                            note="the scenarios' margins and their Jacobian" if progress
-                           else None, cflags=_CFLAGS)
+                           else None, cflags=COMPILE_FLAGS)
     return built.library.resolve(), (time.perf_counter() - started) if built.fresh else 0.0
 
 
