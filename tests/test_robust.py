@@ -63,7 +63,7 @@ def test_saturate_is_the_identity_up_to_the_limit_and_levels_off():
 
 
 def test_select_scenarios_takes_failures_near_the_boundary_by_class():
-    cls = np.array(["stable"] * 6 + ["tip_over"] * 4 + ["stroke"] * 2 + ["moving"])
+    cls = np.array(["stable"] * 6 + ["tip_over"] * 4 + ["stroke"] * 2 + ["no_touchdown"])
     margins = np.array([0.5, 0.01, 0.2, 0.03, 0.9, 0.02,      # stable
                         -0.05, -3.0, -0.4, -0.2,              # tip-overs, one hopeless
                         -0.1, -0.5, 0.3])
@@ -143,6 +143,36 @@ def test_margins_bound_the_envelope_extrema_from_above(run):
         r = R[CHECKS.index(name)]
         assert np.all(r >= value - 1e-9), (name, r, value)
         assert np.all(r <= value + slack), (name, r, value)
+
+
+@needs_cc
+def test_the_at_rest_margin_covers_the_end_of_the_horizon(tmp_path):
+    """The 'moving' ratio is the KS of (|v| + |ω|·reach)/rest_speed over the last
+    REST_WINDOW: at least the envelope's end-of-run motion, and 0 without the check."""
+    from symcushion.robust.evaluate import build_margins
+    from symcushion.touchdown import build_model
+    import casadi as ca
+
+    data = copy.deepcopy(TINY)
+    data["limits"]["rest_speed"] = 0.05
+    study = robust_study_from_dict(data, "tiny.toml").envelope.with_(n=3)
+    study = study.with_(scene=study.scene.with_(duration=0.4))
+    model = build_model(study.scene)
+    cond = {"vertical_speed": np.array([1.5, 2.0, 3.0]), "slope_deg": np.array([0.0, 2.0, 5.0])}
+    c = ev.evaluate(study, cond, cache_dir=tmp_path)
+    x0, gravity = ev.initial_states(study, {**{k: np.zeros(3) for k in ev.VARIABLES},
+                                            "mu": np.full(3, 0.5), **cond})
+    p = ev.case_params(study.scene, np.full(3, 0.5), gravity)
+    limits = {"moving": 0.05}
+    library, _ = build_margins(model, study.scene.steps, limits, np.zeros((model.np, 0)),
+                               sharpness=200.0, reach=ev.reach(study.scene),
+                               cache_dir=tmp_path, name="rest")
+    f = ca.external("touchdown_margins", str(library))
+    for i in range(3):
+        r = np.asarray(f(x0[:, i], p[:, i], np.zeros(0), study.scene.dt)).ravel()
+        moving = r[CHECKS.index("moving")]
+        assert moving >= c["final_motion"][i] / 0.05 - 1e-9 and moving > 0.1, (moving, c["final_motion"][i])
+        assert np.all(np.delete(r, CHECKS.index("moving")) == 0)
 
 
 @needs_cc

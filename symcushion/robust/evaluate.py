@@ -32,7 +32,8 @@ MARGINS = "touchdown_margins"
 
 
 def build_margins(model, steps: int, limits: dict, design: np.ndarray, *, sharpness: float,
-                  cache_dir=None, name: str = "scene", progress: bool = False) -> tuple:
+                  reach: float = 0.0, cache_dir=None, name: str = "scene",
+                  progress: bool = False) -> tuple:
     """Generate and compile ``touchdown_margins`` and its Jacobian in w; return the library.
 
     Parameters
@@ -46,6 +47,8 @@ def build_margins(model, steps: int, limits: dict, design: np.ndarray, *, sharpn
         p = p0 + design·w.
     sharpness : float
         ρ of the KS aggregate.
+    reach : float
+        Lever arm of the at-rest check (m).
     cache_dir : str or Path, optional
         Default :data:`DEFAULT_CACHE`.
 
@@ -56,7 +59,7 @@ def build_margins(model, steps: int, limits: dict, design: np.ndarray, *, sharpn
         C generation and gcc (0.0 when the cache held the build).
     """
     started = time.perf_counter()
-    f = margins_function(model, steps, limits, sharpness=sharpness, design=design)
+    f = margins_function(model, steps, limits, sharpness=sharpness, design=design, reach=reach)
     args = [ca.MX.sym(n, f.sparsity_in(i)) for i, n in enumerate(f.name_in())]
     ratio = f(*args)
     jac = ca.Function(MARGINS + "_jac", args, [ratio, ca.jacobian(ratio, args[2])],

@@ -16,9 +16,13 @@ sharp peak it is within a few 1/ρ of it.
 Ratios, in :data:`CHECKS` order, are value/limit of: the tilt of the body
 axis from the true vertical as (1 − cos)/(1 − cos tilt_max); the axial
 stroke ±δ_S; the hinge angles ±β and ±(γ − γ₀); the norm of the specific
-force low-pass filtered as in the envelope (``DECEL_FILTER_TIME``); and the
-upward speed. A ratio above 1 fails that limit. Signed pairs (±δ) keep the
-aggregate smooth where a deflection passes through zero.
+force low-pass filtered as in the envelope (``DECEL_FILTER_TIME``); the
+upward speed; and the motion at the end, (|v| + |ω|·reach)/rest_speed over
+the last :data:`REST_WINDOW` of the horizon (the envelope's at-rest check,
+taken over a window so that a body chattering between an absorber's
+branches, still at one instant and moving the next, is seen). A ratio above
+1 fails that limit. Signed pairs (±δ) keep the aggregate smooth where a
+deflection passes through zero.
 
 It must not choose scenarios, designs or weights, and it must not classify:
 the envelope's running extrema (``symcushion.envelope``) stay the judge of a
@@ -30,13 +34,20 @@ import casadi as ca
 import numpy as np
 
 from ..envelope.cases import DECEL_FILTER_TIME
+from ..layout import state_layout
 from ..measures import measures_function
 from ..touchdown import StepModel
 
-__all__ = ["CHECKS", "DEFAULT_SHARPNESS", "margins_function"]
+__all__ = ["CHECKS", "REST_WINDOW", "DEFAULT_SHARPNESS", "margins_function"]
 
 #: The aggregated ratios, in output order.
-CHECKS = ("tip_over", "stroke", "beta", "gamma", "deceleration", "rebound")
+CHECKS = ("tip_over", "stroke", "beta", "gamma", "deceleration", "rebound", "moving")
+
+#: The at-rest ratio is aggregated over this last part of the horizon (s):
+#: long enough to hold several periods of a chatter between branches (one or
+#: two steps each) and of the legs' hinge vibration (tens of ms), short
+#: enough that the touchdown itself is over.
+REST_WINDOW = 0.2
 
 #: ρ of the KS aggregate, in units of 1/ratio. 200: the aggregate of a peak
 #: spread over ten samples is about ln(10)/200 ≈ 0.012 above the true
@@ -59,7 +70,8 @@ def _ks_update(m, s, samples, rho):
 
 
 def margins_function(model: StepModel, steps: int, limits: dict, *,
-                     sharpness: float = DEFAULT_SHARPNESS, design=None) -> ca.Function:
+                     sharpness: float = DEFAULT_SHARPNESS, design=None,
+                     reach: float = 0.0) -> ca.Function:
     """``touchdown_margins(x0, p0, w, dt) -> ratio``: smooth value/limit of every check.
 
     Parameters
@@ -70,13 +82,16 @@ def margins_function(model: StepModel, steps: int, limits: dict, *,
         Steps of the horizon (≥ 1).
     limits : dict
         ``{check: limit}`` for the names of :data:`CHECKS` (tilt in rad, stroke
-        in m, β and γ in rad, deceleration in m/s², rebound in m/s). A check
-        whose limit is None or missing gets ratio 0.
+        in m, β and γ in rad, deceleration in m/s², rebound and moving in
+        m/s). A check whose limit is None or missing gets ratio 0.
     sharpness : float
         ρ of the KS aggregate (:data:`DEFAULT_SHARPNESS`).
     design : ndarray, shape (np, nw), optional
         The map M from the design vector w into the step's parameters:
         p = p0 + M w. Default: w is empty and p = p0.
+    reach : float
+        Lever arm of the at-rest check (m): the largest distance of a foot at
+        rest from the centre of mass.
 
     Returns
     -------
@@ -101,9 +116,11 @@ def margins_function(model: StepModel, steps: int, limits: dict, *,
     n_checks = len(CHECKS)
     rho = float(sharpness)
     axial = [j for j, leg in enumerate(scene.legs) if not leg.rigid]
+    xl = state_layout(model.n_legs)
 
     x = ca.SX.sym("x", model.nx)
     a_f = ca.SX.sym("a_filtered", 3)
+    t = ca.SX.sym("t")                                  # time at the start of the step
     m = ca.SX.sym("m", n_checks)
     s = ca.SX.sym("s", n_checks)
     p = ca.SX.sym("p", model.np)
@@ -127,14 +144,19 @@ def margins_function(model: StepModel, steps: int, limits: dict, *,
                ratio("beta", ca.vertcat(meas["beta"], -meas["beta"])),
                ratio("gamma", ca.vertcat(meas["gamma_deflection"], -meas["gamma_deflection"])),
                ratio("deceleration", ca.norm_2(a_f1)),
-               ratio("rebound", meas["upward_speed"])]
+               ratio("rebound", meas["upward_speed"]),
+               # the window depends on time only, never on the design: smooth in w
+               ca.if_else(t + h >= (steps * h) - REST_WINDOW * (1 - 1e-9),
+                          ratio("moving", ca.norm_2(xl.get(x1, "velocity"))
+                                + ca.norm_2(xl.get(x1, "angular_velocity")) * float(reach)),
+                          _FLOOR)]
     m1, s1 = [], []
     for i, v in enumerate(samples):
         mi, si = _ks_update(m[i], s[i], v, rho)
         m1.append(mi)
         s1.append(si)
-    state = ca.vertcat(x, a_f, m, s)
-    state1 = ca.vertcat(x1, a_f1, *m1, *s1)
+    state = ca.vertcat(x, a_f, t, m, s)
+    state1 = ca.vertcat(x1, a_f1, t + h, *m1, *s1)
     step = ca.Function("margins_step", [state, p, h], [state1], ["state", "p", "dt"],
                        ["state_next"])
 
@@ -142,9 +164,9 @@ def margins_function(model: StepModel, steps: int, limits: dict, *,
     p0 = ca.MX.sym("p0", model.np)
     w = ca.MX.sym("w", M.shape[1])
     dt = ca.MX.sym("dt")
-    start = ca.vertcat(x0, ca.MX.zeros(3), ca.MX(n_checks, 1) + _FLOOR, ca.MX.zeros(n_checks))
+    start = ca.vertcat(x0, ca.MX.zeros(4), ca.MX(n_checks, 1) + _FLOOR, ca.MX.zeros(n_checks))
     end = step.fold(int(steps))(start, p0 + ca.DM(M) @ w, dt)
-    tail = model.nx + 3
+    tail = model.nx + 4
     peak, total = end[tail:tail + n_checks], end[tail + n_checks:]
     out = peak + ca.log(total) / rho
     # checks without a limit contribute exactly 0 (their samples are all 0 ⇒ KS = ln K/ρ)

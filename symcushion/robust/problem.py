@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from ..envelope.cases import case_params, initial_states
+from ..envelope.cases import case_params, initial_states, reach
 from ..envelope.study import EnvelopeStudy
 from ..optimise.gradient import _GradientCheck
 from ..optimise.problem import IPOPT_DEFAULTS
@@ -216,7 +216,7 @@ class EnvelopeDesign(_DesignSpace, _GradientCheck):
                              sink_speed=None)
         self._limits = dict(tip_over=self.limits.tilt, stroke=lim.stroke, beta=lim.beta,
                             gamma=lim.gamma, deceleration=lim.deceleration,
-                            rebound=lim.rebound_speed)
+                            rebound=lim.rebound_speed, moving=lim.rest_speed)
         self.checks = [c for c in CHECKS if self._limits[c] is not None]
         self._resolve_variables(list(variables))
         self._shapes = self._resolve_shapes(list(shapes))
@@ -225,7 +225,8 @@ class EnvelopeDesign(_DesignSpace, _GradientCheck):
         design = np.zeros((model.np, nv))
         design[:n_leg] = self._map * self.scale          # p = p0 + design·w, w = θ/scale
         self.library, compile_seconds = build_margins(
-            model, self.steps, self._limits, design, sharpness=sharpness, cache_dir=cache_dir,
+            model, self.steps, self._limits, design, sharpness=sharpness, reach=reach(scene),
+            cache_dir=cache_dir,
             name=f"{study.name}-{self.steps}", progress=progress)
         self._ratios = ScenarioRatios(self.library, self.x0, self.p0, scene.dt, threads, client)
         self.threads = threads

@@ -14,11 +14,9 @@ import numpy as np
 __all__ = ["MARGINS", "DEFAULT_WORST_MARGIN", "DEFAULT_FAIL_SHARE", "worst_margin",
            "select_scenarios"]
 
-#: Margin columns of the envelope's classification that the design acts on
-#: (the at-rest check is left to the Monte Carlo verification: it is a
-#: property of the end state, not of a limit over the horizon).
+#: Margin columns of the envelope's classification that the design acts on.
 MARGINS = ("margin_tip_over", "margin_stroke", "margin_deflection", "margin_deceleration",
-           "margin_rebound")
+           "margin_rebound", "margin_moving")
 #: Failures whose worst margin is below this are left out: a case 100 % over
 #: a limit (a tilt of twice the limit, a rebound at twice the limit speed) is
 #: one no change of the curves turns, and it would only flatten the risk.
@@ -65,8 +63,7 @@ def select_scenarios(columns: dict, n: int, *, fail_share: float = DEFAULT_FAIL_
         raise ValueError(f"`fail_share` must be in [0, 1], got {fail_share!r}.")
     cls = np.asarray(columns["class"])
     margin = worst_margin(columns)
-    failing = (cls != "stable") & (cls != "no_touchdown") & (cls != "moving") & \
-        (margin >= worst)
+    failing = (cls != "stable") & (cls != "no_touchdown") & (margin >= worst)
     stable = cls == "stable"
     n_fail = min(int(round(fail_share * n)), int(failing.sum()))
     n_stable = min(n - n_fail, int(stable.sum()))
