@@ -17,11 +17,12 @@ Ratios, in :data:`CHECKS` order, are value/limit of: the tilt of the body
 axis from the true vertical as (1 − cos)/(1 − cos tilt_max); the axial
 stroke ±δ_S; the hinge angles ±β and ±(γ − γ₀); the norm of the specific
 force low-pass filtered as in the envelope (``DECEL_FILTER_TIME``); the
-upward speed; and the motion at the end, (|v| + |ω|·reach)/rest_speed over
-the last :data:`REST_WINDOW` of the horizon (the envelope's at-rest check,
-taken over a window so that a body chattering between an absorber's
-branches, still at one instant and moving the next, is seen). A ratio above
-1 fails that limit. Signed pairs (±δ) keep the aggregate smooth where a
+upward speed; and the motion at the end: the mean of (|v| + |ω|·reach) over
+the last :data:`REST_WINDOW` of the horizon over rest_speed (the envelope's
+at-rest check, averaged over a window so that a body chattering between an
+absorber's branches, still at one step and moving at the next, is seen,
+while a single-step spike of the chatter does not decide it as a maximum
+would). A ratio above 1 fails that limit. Signed pairs (±δ) keep the aggregate smooth where a
 deflection passes through zero.
 
 It must not choose scenarios, designs or weights, and it must not classify:
@@ -121,8 +122,9 @@ def margins_function(model: StepModel, steps: int, limits: dict, *,
     x = ca.SX.sym("x", model.nx)
     a_f = ca.SX.sym("a_filtered", 3)
     t = ca.SX.sym("t")                                  # time at the start of the step
-    m = ca.SX.sym("m", n_checks)
-    s = ca.SX.sym("s", n_checks)
+    n_ks = n_checks - 1                                 # every check but 'moving'
+    m = ca.SX.sym("m", n_ks)
+    s = ca.SX.sym("s", n_ks)
     p = ca.SX.sym("p", model.np)
     h = ca.SX.sym("dt")
     x1, y = model.step(x, p, h)
@@ -144,19 +146,19 @@ def margins_function(model: StepModel, steps: int, limits: dict, *,
                ratio("beta", ca.vertcat(meas["beta"], -meas["beta"])),
                ratio("gamma", ca.vertcat(meas["gamma_deflection"], -meas["gamma_deflection"])),
                ratio("deceleration", ca.norm_2(a_f1)),
-               ratio("rebound", meas["upward_speed"]),
-               # the window depends on time only, never on the design: smooth in w
-               ca.if_else(t + h >= (steps * h) - REST_WINDOW * (1 - 1e-9),
-                          ratio("moving", ca.norm_2(xl.get(x1, "velocity"))
-                                + ca.norm_2(xl.get(x1, "angular_velocity")) * float(reach)),
-                          _FLOOR)]
+               ratio("rebound", meas["upward_speed"])]
+    # the at-rest mean: the window depends on time only, never on the design
+    weight = ca.if_else(t + h >= (steps * h) - REST_WINDOW * (1 - 1e-9), h, 0.0)
+    motion = ratio("moving", ca.norm_2(xl.get(x1, "velocity"))
+                   + ca.norm_2(xl.get(x1, "angular_velocity")) * float(reach))
     m1, s1 = [], []
     for i, v in enumerate(samples):
         mi, si = _ks_update(m[i], s[i], v, rho)
         m1.append(mi)
         s1.append(si)
-    state = ca.vertcat(x, a_f, t, m, s)
-    state1 = ca.vertcat(x1, a_f1, t + h, *m1, *s1)
+    mean = ca.SX.sym("mean", 2)                         # ∫ motion dt, ∫ dt over the window
+    state = ca.vertcat(x, a_f, t, mean, m, s)
+    state1 = ca.vertcat(x1, a_f1, t + h, mean + ca.vertcat(weight * motion, weight), *m1, *s1)
     step = ca.Function("margins_step", [state, p, h], [state1], ["state", "p", "dt"],
                        ["state_next"])
 
@@ -164,11 +166,12 @@ def margins_function(model: StepModel, steps: int, limits: dict, *,
     p0 = ca.MX.sym("p0", model.np)
     w = ca.MX.sym("w", M.shape[1])
     dt = ca.MX.sym("dt")
-    start = ca.vertcat(x0, ca.MX.zeros(4), ca.MX(n_checks, 1) + _FLOOR, ca.MX.zeros(n_checks))
+    start = ca.vertcat(x0, ca.MX.zeros(6), ca.MX(n_ks, 1) + _FLOOR, ca.MX.zeros(n_ks))
     end = step.fold(int(steps))(start, p0 + ca.DM(M) @ w, dt)
     tail = model.nx + 4
-    peak, total = end[tail:tail + n_checks], end[tail + n_checks:]
-    out = peak + ca.log(total) / rho
+    at_rest = end[tail] / end[tail + 1]
+    peak, total = end[tail + 2:tail + 2 + n_ks], end[tail + 2 + n_ks:]
+    out = ca.vertcat(peak + ca.log(total) / rho, at_rest)
     # checks without a limit contribute exactly 0 (their samples are all 0 ⇒ KS = ln K/ρ)
     keep = ca.DM([1.0 if limits.get(c) is not None else 0.0 for c in CHECKS])
     return ca.Function("touchdown_margins", [x0, p0, w, dt], [out * keep],
