@@ -59,10 +59,12 @@ DEFAULT_ALPHA = 0.5
 #: whatever the design does; its gradient is then below 1e-3 of a ratio's
 #: near the limit (sech²(5) once r is 11).
 DEFAULT_SATURATION = 3.0
-#: Horizon of a scenario (s): long enough for a tip-over to be decided (a
-#: lander that tips goes past the 35° limit within about a second of
-#: touchdown on the example study, docs/envelope.md).
-DEFAULT_HORIZON = 1.5
+#: Horizon of a scenario when none is given: the envelope study's own
+#: duration, so that the at-rest check is taken where the verification takes
+#: it (a lander that tips goes past the 35° limit within about a second of
+#: touchdown on the example study, docs/envelope.md, so any horizon from
+#: ~1.5 s decides tip-overs; resting needs the full 2 s).
+DEFAULT_HORIZON = None
 #: Ipopt options of the envelope design: the design package's defaults with a
 #: looser tolerance (the losses are smooth stand-ins for classes, so 1e-6 of
 #: their scale is far below what changes a class) and fewer iterations.
@@ -153,8 +155,8 @@ class EnvelopeDesign(_DesignSpace, _GradientCheck):
     variables : sequence of DesignVariable
     names : sequence of str, optional
         Scenario names for reports (default ``s0 … s{S-1}``).
-    horizon : float
-        Simulated time per scenario (s).
+    horizon : float, optional
+        Simulated time per scenario (s); default the study's duration.
     risk : {'cvar', 'worst'}
     alpha : float
         CVaR level in [0, 1).
@@ -175,7 +177,7 @@ class EnvelopeDesign(_DesignSpace, _GradientCheck):
     """
 
     def __init__(self, study: EnvelopeStudy, conditions: dict, variables, *, names=None,
-                 horizon: float = DEFAULT_HORIZON, risk: str = "cvar",
+                 horizon: float | None = DEFAULT_HORIZON, risk: str = "cvar",
                  alpha: float = DEFAULT_ALPHA, saturation: float = DEFAULT_SATURATION,
                  sharpness: float = DEFAULT_SHARPNESS, shapes=(), threads: int | None = None,
                  client=None, cache_dir=None, progress: bool = False):
@@ -189,6 +191,7 @@ class EnvelopeDesign(_DesignSpace, _GradientCheck):
         if not (isinstance(saturation, (int, float)) and saturation > 1):
             raise ValueError(f"`saturation` must be > 1, got {saturation!r}; e.g. "
                              f"{DEFAULT_SATURATION}.")
+        horizon = study.scene.duration if horizon is None else horizon
         if not (isinstance(horizon, (int, float)) and horizon > 0 and math.isfinite(horizon)):
             raise ValueError(f"`horizon` must be a positive time in s, got {horizon!r}.")
         threads = (os.cpu_count() or 1) if threads is None else threads

@@ -70,7 +70,7 @@ class RobustStudy:
     scenarios: int = DEFAULT_SCENARIOS
     fail_share: float = DEFAULT_FAIL_SHARE
     worst_margin: float = DEFAULT_WORST_MARGIN
-    horizon: float = DEFAULT_HORIZON
+    horizon: float | None = DEFAULT_HORIZON
     risk: str = "cvar"
     alpha: float = DEFAULT_ALPHA
     saturation: float = DEFAULT_SATURATION
@@ -100,7 +100,7 @@ def robust_study_from_dict(data: dict, source: str = "<dict>") -> RobustStudy:
         scenarios=rb.get("scenarios", DEFAULT_SCENARIOS, kind="int"),
         fail_share=rb.get("fail_share", DEFAULT_FAIL_SHARE, nonnegative=True),
         worst_margin=rb.get("worst_margin", DEFAULT_WORST_MARGIN),
-        horizon=rb.get("horizon", DEFAULT_HORIZON, positive=True),
+        horizon=rb.get("horizon", envelope.scene.duration, positive=True),
         risk=rb.get("risk", "cvar", kind="string", choices=RISKS),
         alpha=rb.get("alpha", DEFAULT_ALPHA, nonnegative=True),
         saturation=rb.get("saturation", DEFAULT_SATURATION, positive=True),
