@@ -355,16 +355,21 @@ class EnvelopeDesign(_DesignSpace, _GradientCheck):
         best = dict(risk=self.risk_of(self.losses(self.initial))[0], theta=self.initial.copy(),
                     iteration=-1)
 
+        shape_rows = np.concatenate([np.arange(b.start, b.stop) for b in self.blocks
+                                     if b.kind == "shape"] + [np.zeros(0, int)]).astype(int)
+
         def on_iteration(x, f, g):
             theta = np.clip(x[:nv] * self.scale, self.lower, self.upper)
+            # only designs that meet the curve shapes (rows scaled to O(1)) may be kept
+            admissible = bool(np.all(g[shape_rows] >= self.lbg[shape_rows] - VIOLATION_TOL))
             R = self.ratios(theta)
             active = R[[CHECKS.index(c) for c in self.checks]]
             risk = self.risk_of(np.max(saturate(active, self.saturation) - 1, axis=0))[0]
-            row = dict(iteration=len(history), objective=f, risk=risk,
+            row = dict(iteration=len(history), objective=f, risk=risk, shapes_met=admissible,
                        seconds=time.perf_counter() - started,
                        within=int(np.sum(np.all(active <= 1.0, axis=0))))
             history.append(row)
-            if risk < best["risk"]:
+            if admissible and risk < best["risk"]:
                 best.update(risk=risk, theta=theta, iteration=row["iteration"])
             if callable(progress):
                 progress(row)
@@ -382,9 +387,12 @@ class EnvelopeDesign(_DesignSpace, _GradientCheck):
         x = np.asarray(sol["x"], dtype=float).ravel()
         final = np.clip(x[:nv] * self.scale, self.lower, self.upper)
         final_risk = self.risk_of(self.losses(final))[0]
+        g_final = np.asarray(sol["g"], dtype=float).ravel()
+        if not np.all(g_final[shape_rows] >= self.lbg[shape_rows] - VIOLATION_TOL):
+            final_risk = math.inf                         # not an admissible design
         # the rollouts are only piecewise smooth (contacts, stick–slip, branch switches):
         # Ipopt's filter may accept a step that lowers the rows' violation at the cost of
-        # the risk, so the best design it visited is kept, not only its last one
+        # the risk, so the best admissible design it visited is kept, not only its last one
         theta, objective = (final, final_risk) if final_risk <= best["risk"] else \
             (best["theta"], best["risk"])
         chosen = "final" if theta is final else f"iteration {best['iteration']}"
