@@ -62,8 +62,6 @@ METHOD_REFERENCE = ("implicit", "end", 5e-4)
 #: 1.06 m/s down, 0.14 m/s nearly uphill, 13.8° slope; 'robust' settles,
 #: 'implicit' tips over.
 MARGINAL_CASE = 2462
-#: A "stable" case faster than this at the end (m/s) has not come to rest.
-MOVING_SPEED = 0.05
 #: Heading of the section --methods writes in docs/envelope.md.
 METHODS_HEADING = "Sensitivity to the contact method and Δt"
 
@@ -345,7 +343,7 @@ def methods(threads: int) -> str:
     cores = os.cpu_count() or 1
     cost_10k = {v: TARGET_CASES * results[v]["cpu_per_case"] / 60 for v in METHOD_VARIANTS}
     implicit_finest = implicit_dts[-1]
-    moving = {v: int(np.sum(results[v]["stable"] & (results[v]["final_speed"] > MOVING_SPEED)))
+    moving = {v: int(np.sum(results[v]["class"] == "moving"))
               for v in (default, reference)}
     reading = (
         "**Reading.** The contact method, not Δt, sets the statistics: 'implicit' converges "
@@ -389,9 +387,9 @@ def methods(threads: int) -> str:
     advice += (
         f"For single cases use {_variant_label(reference)} or finer and read the margins: "
         f"a case near a limit has no converged class at any of these steps{check}, like "
-        "the marginal case below. A \"stable\" case need not have come to rest within the "
-        f"2 s: {moving[default]} stable cases of the default and {moving[reference]} of "
-        f"the reference still move faster than {MOVING_SPEED:g} m/s at the end.")
+        "the marginal case below. Within every limit but not at rest at 2 s (class "
+        f"`moving`, `limits.rest_speed`): {moving[default]} cases of the default and "
+        f"{moving[reference]} of the reference.")
     text = (
         f"Produced by `python studies/bench_envelope.py --methods` on {cpu_name()} "
         f"({cores} cores, shared with other jobs), CasADi {ca.__version__}: the first "
