@@ -145,7 +145,8 @@ def _run_and_kill(out: Path, duration: float):
         proc.kill()
         pytest.fail("the run never started writing")
     proc.send_signal(signal.SIGTERM)
-    proc.communicate(timeout=KILL_TIMEOUT)
+    _, err = proc.communicate(timeout=KILL_TIMEOUT)
+    _run_and_kill.stderr = err.decode(errors="replace")[-2000:]   # for the failure message
     return proc.returncode, directory
 
 
@@ -155,13 +156,13 @@ def test_killed_run_leaves_the_previous_complete_file(tmp_path):
                      "--no-plots"]) == 0
     before = {p.name: p.read_bytes() for p in (out / "fig3").iterdir()}
     code, directory = _run_and_kill(out, 100.0)
-    assert code == 128 + signal.SIGTERM
+    assert code == 128 + signal.SIGTERM, _run_and_kill.stderr
     assert {p.name: p.read_bytes() for p in directory.iterdir()} == before
 
 
 def test_killed_first_run_leaves_no_file(tmp_path):
     code, directory = _run_and_kill(tmp_path / "out", 100.0)
-    assert code == 128 + signal.SIGTERM
+    assert code == 128 + signal.SIGTERM, _run_and_kill.stderr
     assert list(directory.iterdir()) == []
 
 
