@@ -179,14 +179,19 @@ def _cmd_codegen(args):
     return 0
 
 
+def _set_max_iter(ipopt: dict, value):
+    """Ipopt's ``max_iter`` from ``--max-iter``, checked (None leaves the study's)."""
+    if value is not None:
+        if value < 1:
+            raise ValueError(f"`--max-iter` must be a positive integer, got {value}.")
+        ipopt["max_iter"] = value
+
+
 def _cmd_optimise(args):
     from .optimise import load_study
 
     study = load_study(args.study)
-    if args.max_iter is not None:
-        if args.max_iter < 1:
-            raise ValueError(f"`--max-iter` must be a positive integer, got {args.max_iter}.")
-        study.ipopt["max_iter"] = args.max_iter
+    _set_max_iter(study.ipopt, args.max_iter)
     out = args.out if args.out is not None else Path("out") / f"{study.name}.json"
     check_output_file(out, "--out")                    # before building and solving
     pb = study.problem
@@ -206,10 +211,7 @@ def _cmd_design(args):
     from .robust.study import load_robust_study, run_robust_study
 
     study = load_robust_study(args.study)
-    if args.max_iter is not None:
-        if args.max_iter < 1:
-            raise ValueError(f"`--max-iter` must be a positive integer, got {args.max_iter}.")
-        study.ipopt["max_iter"] = args.max_iter
+    _set_max_iter(study.ipopt, args.max_iter)
     if args.n is not None:
         if args.n < 1:
             raise ValueError(f"`--n` must be a positive integer, got {args.n}.")

@@ -167,7 +167,8 @@ def test_killed_first_run_leaves_no_file(tmp_path):
 
 
 @pytest.mark.parametrize("command", (["optimise", str(ROOT / "studies" / "absorber_1d.toml")],
-                                     ["envelope", str(ROOT / "studies" / "envelope_lander.toml")]))
+                                     ["envelope", str(ROOT / "studies" / "envelope_lander.toml")],
+                                     ["design", str(ROOT / "studies" / "design_for_envelope.toml")]))
 def test_study_outputs_are_checked_before_the_work(tmp_path, capsys, command):
     afile = tmp_path / "afile"
     afile.write_text("x")
@@ -175,3 +176,12 @@ def test_study_outputs_are_checked_before_the_work(tmp_path, capsys, command):
     assert cli.main(command + ["--out", str(out)]) == 2
     err = capsys.readouterr().err
     assert "`--out`" in err and "file" in err
+
+
+@pytest.mark.parametrize("flag, value", (("--max-iter", "0"), ("--n", "0")))
+def test_design_rejects_bad_counts_before_the_work(tmp_path, capsys, flag, value):
+    code = cli.main(["design", str(ROOT / "studies" / "design_for_envelope.toml"),
+                     "--out", str(tmp_path / "out"), flag, value])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert f"`{flag}`" in err and "positive integer" in err
