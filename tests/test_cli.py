@@ -74,7 +74,7 @@ def test_bad_out_fails_before_the_run(tmp_path, monkeypatch, capsys, where):
     def no_build(*args, **kwargs):
         raise AssertionError("the model was built before the output path was checked")
 
-    monkeypatch.setattr("symcushion.simulate.build_model", no_build)
+    monkeypatch.setattr("symcushion.touchdown.build_model", no_build)   # what the CLI calls
     afile = tmp_path / "afile"
     afile.write_text("x")
     out = afile if where == "file" else afile / "sub"
