@@ -114,7 +114,7 @@ class ScenarioRatios(ca.Callback):
     """
 
     def __init__(self, library, x0, p0, dt: float, threads: int = 1, client=None,
-                 jacobian: bool = False, _parent=None):
+                 jacobian: bool = False):
         ca.Callback.__init__(self)
         self.library = str(library)
         self.x0, self.p0, self.dt = np.asarray(x0, float), np.asarray(p0, float), float(dt)

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import copy
 import time
+from collections import Counter
 from dataclasses import dataclass, field
 
 from ..envelope.runner import run_envelope
@@ -180,7 +181,7 @@ def run_robust_study(study: RobustStudy, out_dir=None, *, threads: int | None = 
     conditions = {k: v[idx] for k, v in pool.conditions.items()}
     names = [f"case{i}_{pool.columns['class'][i]}" for i in idx]
     say(f"{study.name}: 2/4 {idx.size} scenarios selected: "
-        + ", ".join(f"{c} {n}" for c, n in _tally(pool.columns["class"][idx]).items()))
+        + ", ".join(f"{c} {n}" for c, n in Counter(map(str, pool.columns["class"][idx])).items()))
     t0 = time.perf_counter()
     problem = EnvelopeDesign(study.envelope, conditions, study.variables, names=names,
                              horizon=study.horizon, risk=study.risk, alpha=study.alpha,
@@ -221,9 +222,3 @@ def run_robust_study(study: RobustStudy, out_dir=None, *, threads: int | None = 
         run["files"] = write_report(run, out_dir)
     return run
 
-
-def _tally(classes) -> dict:
-    out = {}
-    for c in classes:
-        out[str(c)] = out.get(str(c), 0) + 1
-    return out
