@@ -223,6 +223,26 @@ def test_graph_is_smaller_without_friction_and_elements():
     assert two_legs < frictionless
 
 
+def test_on_one_plane_the_end_point_pass_changes_only_round_off(sled_scene):
+    # On a single plane the tangent plane at the predicted end point is the
+    # plane itself: the second contact pass of tangent_plane = "end" repeats
+    # the first, so "start" gives the same run from a smaller graph
+    # (the envelope study relies on it, docs/envelope.md).
+    scene = sled_scene(0.2, 0.3, method="implicit").with_(duration=0.2)
+    x0 = equilibrium_state(scene, placement="nearest")
+    x0[3:6] = [1.0, 0.5, 0.0]            # sliding sideways
+    x0[10:13] = [0.0, 0.0, 2.0]          # and turning: the passes do real work
+    end = build_model(scene)
+    start = build_model(scene.with_(tangent_plane="start"))
+    assert start.graph_size()["instructions"] < end.graph_size()["instructions"]
+    a = simulate(scene, x0=x0, model=end)
+    b = simulate(scene.with_(tangent_plane="start"), x0=x0, model=start)
+    assert np.sum(a.mode == 2) > 100
+    np.testing.assert_array_equal(a.mode, b.mode)
+    np.testing.assert_allclose(b.position, a.position, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(b.force, a.force, rtol=0, atol=1e-10 * np.abs(a.force).max())
+
+
 def test_trajectory_files(tmp_path):
     from symcushion.simulate import save
 
