@@ -3,10 +3,14 @@
 The scenes are the study files of the repository (``studies/fig3.toml``,
 ``studies/fig4.toml``, ``studies/lander_slope.toml``) loaded once per test
 session; tests that need a variant derive it with ``scene.with_(...)``, which
-returns a new scene and leaves the shared one unchanged. The contact-case
+returns a new scene and leaves the shared one unchanged. A separately started Dask scheduler with two worker
+processes (``dask_scheduler``) serves the tests of the cluster paths. The contact-case
 generator is :func:`oracle_contact.random_cases` (pytest puts this folder on
 ``sys.path``, so the oracle module imports without path manipulation).
 """
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -63,3 +67,42 @@ def random_contact_cases():
     def make(seed, count, kind="mixed"):
         return oracle_contact.random_cases(np.random.default_rng(seed), count, kind)
     return make
+
+
+#: Seconds to wait for a separately started Dask scheduler and its workers.
+DASK_START_TIMEOUT = 60.0
+
+
+@pytest.fixture(scope="session")
+def dask_scheduler(tmp_path_factory):
+    """Address of a Dask scheduler started as its own process, with two single-threaded
+    worker processes (``dask scheduler`` and ``dask worker`` as on a cluster)."""
+    distributed = pytest.importorskip("distributed", reason="the Dask paths need the optional "
+                                                            "extra symcushion[dask]")
+    folder = tmp_path_factory.mktemp("dask")
+    info = folder / "scheduler.json"
+    quiet = dict(stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=folder)
+    procs = [subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler",
+                               "--scheduler-file", str(info), "--port", "0",
+                               "--no-dashboard"], **quiet)]
+    try:
+        deadline = time.monotonic() + DASK_START_TIMEOUT
+        while not info.exists():
+            if time.monotonic() > deadline or procs[0].poll() is not None:
+                pytest.fail("the Dask scheduler did not start")
+            time.sleep(0.2)
+        procs.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker",
+                                       "--scheduler-file", str(info), "--nworkers", "2",
+                                       "--nthreads", "1", "--no-dashboard"], **quiet))
+        with distributed.Client(scheduler_file=str(info)) as client:
+            client.wait_for_workers(2, timeout=DASK_START_TIMEOUT)
+            address = client.scheduler.address
+        yield address
+    finally:
+        for proc in reversed(procs):
+            proc.terminate()
+        for proc in procs:
+            try:
+                proc.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                proc.kill()

@@ -166,6 +166,22 @@ def test_dask_solve_follows_the_threads_path(compiled, dask_problem):
     assert np.max(np.abs(on_dask.theta - on_threads.theta)) <= SAME_TOL * scale
 
 
+def test_a_separately_started_scheduler_reaches_the_threads_optimum(compiled, compiled_result,
+                                                                     dask_scheduler):
+    """The absorber solved to the end with its scenarios on a ``dask scheduler`` started
+    as its own process (two ``dask worker`` processes): the threaded solve's iterations
+    and optimum."""
+    import distributed
+    problem = load_study(ABSORBER).problem
+    with distributed.Client(dask_scheduler) as client:
+        problem.use_compiled(compiled[3], cflags=COMPILE_FLAGS_TEST, client=client)
+        remote = problem.solve()
+    assert remote.return_status == compiled_result.return_status == "Solve_Succeeded"
+    assert remote.iterations == compiled_result.iterations
+    scale = np.max(np.abs(compiled_result.theta))
+    assert np.max(np.abs(remote.theta - compiled_result.theta)) <= SAME_TOL * scale
+
+
 def test_study_key_compile_selects_the_compiled_path():
     """``[solver] compile = true`` in a study file makes Study.solve compile."""
     import tomllib

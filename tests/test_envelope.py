@@ -176,6 +176,19 @@ def test_threaded_and_dask_csv_are_identical(study, library, cache, tmp_path):
 
 
 @needs_cc
+def test_a_separately_started_scheduler_gives_the_same_csv(study, library, cache, tmp_path,
+                                                           dask_scheduler):
+    threaded = ev.run_envelope(study, tmp_path / "threads", threads=2, cache_dir=cache,
+                               progress=False, plots=False)
+    remote = ev.run_envelope(study, tmp_path / "remote", scheduler=dask_scheduler,
+                             cache_dir=cache, progress=False, plots=False)
+    a = (tmp_path / "threads" / "cases.csv").read_bytes()
+    assert a == (tmp_path / "remote" / "cases.csv").read_bytes()
+    assert remote.counts() == threaded.counts()
+    assert remote.timings["workers"] == 2
+
+
+@needs_cc
 def test_threaded_run_writes_every_case_and_the_figures(study, library, cache, tmp_path):
     small = study.with_(n=64)
     result = ev.run_envelope(small, tmp_path, cache_dir=cache, progress=False)
