@@ -194,18 +194,44 @@ _INPUTS = ("P0", "Dp", "n", "l", "mu", "delta_be", "P_be", "k_be", "contact_be")
 _OUTPUTS = ("delta", "P", "k", "contact")
 
 
+_SHAPES = dict(P0=(3, 1), Dp=(3, 3), n=(3, 1), l=(3, 1), mu=(1, 1), delta_be=(3, 1),
+               P_be=(3, 1), k_be=(3, 1), contact_be=(1, 1))
+
+
 @functools.lru_cache(maxsize=None)
 def _build():
-    shapes = dict(P0=(3, 1), Dp=(3, 3), n=(3, 1), l=(3, 1), mu=(1, 1), delta_be=(3, 1),
-                  P_be=(3, 1), k_be=(3, 1), contact_be=(1, 1))
-    sym = {name: ca.SX.sym(name, *shapes[name]) for name in _INPUTS}
+    """The SX Function ``contact_slip_midpoint`` of :func:`midpoint_slip`."""
+    sym = {name: ca.SX.sym(name, *_SHAPES[name]) for name in _INPUTS}
     be = {key: sym[key + "_be"] for key in _OUTPUTS}
     out = midpoint_slip(sym["P0"], sym["Dp"], sym["n"], sym["l"], sym["mu"], be)
-    f = ca.Function("contact_slip_midpoint", [sym[k] for k in _INPUTS],
-                    [out[k] for k in _OUTPUTS], list(_INPUTS), list(_OUTPUTS), {"cse": True})
+    return ca.Function("contact_slip_midpoint", [sym[k] for k in _INPUTS],
+                       [out[k] for k in _OUTPUTS], list(_INPUTS), list(_OUTPUTS), {"cse": True})
+
+
+@functools.lru_cache(maxsize=None)
+def _build_call():
+    """The rule evaluated only for a slipping foot, as one never-inline MX Function.
+
+    A free, sticking or lifting foot (no slip from the backward-Euler step)
+    takes the backward-Euler outputs through unchanged, without the Newton
+    iteration: the rule then costs nothing in the air or in stick. Values and
+    derivatives are those of :func:`_build`'s graph in either branch (its
+    outputs equal the backward-Euler ones wherever the foot does not slip).
+    """
+    full = _build()
+    # forward-mode AD, as the contact step's conditional wrapper
+    # (symcushion.contact): the same sums in the same order as the SX graph
+    opts = {"ad_weight": 0, "ad_weight_sp": 0}
+    sym = [ca.MX.sym(name, *_SHAPES[name]) for name in _INPUTS]
+    keep = ca.Function("contact_slip_midpoint_keep", sym, sym[5:], list(_INPUTS),
+                       list(_OUTPUTS), opts)
+    switch = ca.Function.conditional("contact_slip_midpoint_switch", [keep, full], keep, opts)
+    k_be, contact_be = sym[7], sym[8]
+    slipping = ca.logic_and(contact_be > 0.5, ca.dot(k_be, k_be) > 0)
+    out = switch(slipping, *sym)
     # never_inline: one compiled copy serves every leg and pass of a step
-    return ca.Function("contact_slip_midpoint_call", f.sx_in(), f.call(f.sx_in()),
-                       list(_INPUTS), list(_OUTPUTS), {"never_inline": True})
+    return ca.Function("contact_slip_midpoint_call", sym, out, list(_INPUTS), list(_OUTPUTS),
+                       dict(opts, never_inline=True))
 
 
 def midpoint_slip_call(P0, Dp, n, l, mu, be):
@@ -214,5 +240,5 @@ def midpoint_slip_call(P0, Dp, n, l, mu, be):
     Same arguments and returned dict; ``be`` is the dict of
     ``symcushion.contact.contact_step_call('implicit', ...)``.
     """
-    out = _build()(P0, Dp, n, l, mu, be["delta"], be["P"], be["k"], be["contact"])
+    out = _build_call()(P0, Dp, n, l, mu, be["delta"], be["P"], be["k"], be["contact"])
     return dict(zip(_OUTPUTS, out))
