@@ -18,7 +18,11 @@ turn and fits the order of the error against Δt:
 * ``none``: the three removed together;
 
 and runs a second scene with a hop, ``studies/lander_hop.toml``, whose
-final state at t = 0.6 s is compared with the reference.
+final state at t = 0.6 s is compared with the reference. Every case runs
+with each slip rule of the implicit step (:data:`SLIP_RULES`: backward
+Euler, the default, and the second-order midpoint rule of
+``symcushion.contact_midpoint``), labelled "variant (midpoint)" for the
+second.
 
 Every run is the implicit contact step, compiled C, at Δt in :data:`DT_GRID`;
 the reference is the same scene at :data:`DT_REF`, checked against a run at
@@ -31,16 +35,17 @@ impact speed |v(0)|.
 
 The control runs (``--controls``) remove every event at once: the lander on
 linear legs, at rest on its feet on level ground, kicked; they separate
-bouncing and rocking (no slip) from sliding.
+bouncing and rocking (no slip) from sliding, with each slip rule, from the
+start as built and from a settled start (:func:`settled`).
 
 Output: ``figures/event_order.csv`` (one row per scene, variant and Δt),
 ``figures/event_order.png``, and the sections "Events: measured" and
 "Events: controls" of ``docs/speed-vs-error.md``. Run from the repository
-root: ``python studies/event_order.py`` (2 min on the shared 2-core
-machine when it is quiet, 8 min with other jobs running, plus gcc the first
-time; builds are cached in ``build/event_order/``); ``--controls`` runs only the control runs, ``--only
-TEXT`` only the cases whose scene or variant contains TEXT (no output
-written).
+root: ``python studies/event_order.py`` (twelve cases, 5 min on the
+shared 2-core machine with other jobs running, plus gcc the first time;
+builds are cached in ``build/event_order/``); ``--controls`` runs only the
+control runs (about 4 min), ``--only TEXT`` only the cases whose scene or
+variant contains TEXT (no output written).
 """
 from __future__ import annotations
 
