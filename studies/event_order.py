@@ -18,7 +18,11 @@ turn and fits the order of the error against Δt:
 * ``none``: the three removed together;
 
 and runs a second scene with a hop, ``studies/lander_hop.toml``, whose
-final state at t = 0.6 s is compared with the reference.
+final state at t = 0.6 s is compared with the reference. Every case runs
+with each slip rule of the implicit step (:data:`SLIP_RULES`: backward
+Euler, the default, and the second-order midpoint rule of
+``symcushion.contact_midpoint``), labelled "variant (midpoint)" for the
+second.
 
 Every run is the implicit contact step, compiled C, at Δt in :data:`DT_GRID`;
 the reference is the same scene at :data:`DT_REF`, checked against a run at
@@ -31,16 +35,17 @@ impact speed |v(0)|.
 
 The control runs (``--controls``) remove every event at once: the lander on
 linear legs, at rest on its feet on level ground, kicked; they separate
-bouncing and rocking (no slip) from sliding.
+bouncing and rocking (no slip) from sliding, with each slip rule, from the
+start as built and from a settled start (:func:`settled`).
 
 Output: ``figures/event_order.csv`` (one row per scene, variant and Δt),
 ``figures/event_order.png``, and the sections "Events: measured" and
 "Events: controls" of ``docs/speed-vs-error.md``. Run from the repository
-root: ``python studies/event_order.py`` (2 min on the shared 2-core
-machine when it is quiet, 8 min with other jobs running, plus gcc the first
-time; builds are cached in ``build/event_order/``); ``--controls`` runs only the control runs, ``--only
-TEXT`` only the cases whose scene or variant contains TEXT (no output
-written).
+root: ``python studies/event_order.py`` (twelve cases, 5 min on the
+shared 2-core machine with other jobs running, plus gcc the first time;
+builds are cached in ``build/event_order/``); ``--controls`` runs only the
+control runs (about 4 min), ``--only TEXT`` only the cases whose scene or
+variant contains TEXT (no output written).
 """
 from __future__ import annotations
 
@@ -86,16 +91,28 @@ CHUNK = 2000
 #: Δt at which the slipping share of the contact samples is counted (s).
 SLIP_DT = 1e-4
 VARIANTS = ("all events", "elastic", "stick", "flat", "none")
-COLUMNS = ("scene", "variant", "kind", "dt", "status", "trajectory_error", "rebound_error",
+#: Slip rules of the implicit contact step (``Scene.slip``): every variant runs
+#: with each; a case's label is the variant, with " (midpoint)" for the second.
+SLIP_RULES = ("backward", "midpoint")
+COLUMNS = ("scene", "variant", "slip", "kind", "dt", "status", "trajectory_error", "rebound_error",
            "final_error", "rebound_speed", "cpu_per_sim_second", "slip_fraction")
 ERROR_KEYS = ("trajectory_error", "rebound_error", "final_error")
 
 
-def _variant_data(data: dict, variant: str) -> dict:
-    """The lander's TOML contents with the events of ``variant`` removed."""
+def case_label(variant: str, slip: str) -> str:
+    """The label of a case: the variant, with " (midpoint)" for the midpoint slip rule."""
+    return variant if slip == "backward" else f"{variant} ({slip})"
+
+
+def _variant_data(data: dict, variant: str, slip: str = "backward") -> dict:
+    """The lander's TOML contents with the events of ``variant`` removed and slip rule ``slip``."""
     if variant not in VARIANTS:
         raise ValueError(f"`variant` must be one of {VARIANTS}, got {variant!r}.")
+    if slip not in SLIP_RULES:
+        raise ValueError(f"`slip` must be one of {SLIP_RULES}, got {slip!r}.")
     data = copy.deepcopy(data)
+    if slip != "backward":
+        data["scene"]["slip"] = slip
     if variant in ("elastic", "none"):
         data["legs"]["S"].pop("unloading")
     if variant in ("stick", "none"):
@@ -105,17 +122,23 @@ def _variant_data(data: dict, variant: str) -> dict:
         scene = scene_from_dict(data, "<variant>")
         lowest = max(-float(leg.rest_foot[2]) for leg in scene.legs)
         data["body"]["position"][2] = FLAT_GAP + lowest
-    data["scene"]["name"] = f"{data['scene']['name']}-{variant.replace(' ', '_')}"
+    label = case_label(variant, slip).replace(" (", "-").replace(")", "").replace(" ", "_")
+    data["scene"]["name"] = f"{data['scene']['name']}-{label}"
     return data
 
 
 def scenes():
-    """(scene name, variant, Scene) of every case of the study."""
+    """(scene name, case label, slip rule, Scene) of every case of the study."""
     base = read_toml(STUDIES / "lander_slope.toml")
-    out = [("lander_slope", v, scene_from_dict(_variant_data(base, v), f"lander_slope:{v}"))
-           for v in VARIANTS]
+    out = [("lander_slope", case_label(v, r), r,
+            scene_from_dict(_variant_data(base, v, r), f"lander_slope:{case_label(v, r)}"))
+           for r in SLIP_RULES for v in VARIANTS]
     hop = read_toml(STUDIES / "lander_hop.toml")
-    out.append(("lander_hop", "all events", scene_from_dict(hop, "lander_hop.toml")))
+    out.append(("lander_hop", "all events", "backward", scene_from_dict(hop, "lander_hop.toml")))
+    for r in SLIP_RULES[1:]:
+        out.append(("lander_hop", case_label("all events", r), r,
+                    scene_from_dict(_variant_data(hop, "all events", r),
+                                    f"lander_hop.toml:{case_label('all events', r)}")))
     return out
 
 
@@ -165,11 +188,12 @@ def run_case(name, variant, scene, progress=print):
              f"({time.perf_counter() - started:.0f} s): traj {floor['trajectory_error']:.1e}, "
              f"rebound {floor['rebound_error']:.1e} m/s, final {floor['final_error']:.1e}; "
              f"slip fraction {slip:.2f}")
-    rows = [{"scene": name, "variant": variant, "kind": "reference check", "dt": DT_REF,
+    rows = [{"scene": name, "variant": variant, "slip": scene.slip, "kind": "reference check",
+             "dt": DT_REF,
              "status": "ok", **floor, "slip_fraction": slip}]
     for dt in DT_GRID:
         run = sve.simulate_chunked(model, scene, dt)
-        row = {"scene": name, "variant": variant, "kind": "run", "dt": dt,
+        row = {"scene": name, "variant": variant, "slip": scene.slip, "kind": "run", "dt": dt,
                "status": "ok" if run.finite() else "non-finite",
                "cpu_per_sim_second": run.info["cpu"] / run.info["sim_seconds"]}
         if row["status"] == "ok":
@@ -234,11 +258,14 @@ def plot(rows, fits, path):
         for fit in (f for f in fits if f["scene"] == scene):
             sel = [r for r in rows if (r["scene"], r["variant"]) == (scene, fit["variant"])
                    and r["kind"] == "run" and r["status"] == "ok"]
-            colour, marker = STYLE[fit["variant"]]
+            base = fit["variant"].split(" (")[0]
+            colour, marker = STYLE[base]
+            dashed = base != fit["variant"]
             order = fit[key][0]
             label = fit["variant"] + (f" (order {order:.2f})" if np.isfinite(order) else "")
-            ax.plot([r["dt"] for r in sel], [r[key] for r in sel], "-", marker=marker,
-                    color=colour, ms=5, lw=1.2, label=label)
+            ax.plot([r["dt"] for r in sel], [r[key] for r in sel], "--" if dashed else "-",
+                    marker=marker, color=colour, ms=5, lw=1.2, mfc="none" if dashed else colour,
+                    label=label)
             anchors += [r[key] for r in sel if r["dt"] == min(DT_GRID)]
         anchor = 0.3 * min(anchors, default=1.0)
         for p, ls in ((1, ":"), (2, "-.")):
@@ -249,9 +276,10 @@ def plot(rows, fits, path):
         ax.set_xlabel("Δt (s)")
         ax.set_title(title, fontsize=10)
         ax.grid(True, which="major", alpha=0.3)
-        ax.legend(fontsize=8)
+        ax.legend(fontsize=7)
     fig.suptitle("Event-order study: implicit contact step, compiled C, Verlet body step; "
-                 "each variant removes some of the lander's events (none: all three)", fontsize=10)
+                 "each variant removes some of the lander's events (none: all three); "
+                 "dashed, open markers: midpoint slip rule", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -311,6 +339,35 @@ CONTROL_STIFFNESS = 1e5
 CONTROL_DURATION = 0.3
 CONTROL_DT_REF = 1e-5
 CONTROL_DTS = (2e-3, 1e-3, 5e-4, 2.5e-4, 1e-4)
+#: Length of the step that settles a control's start (s; :func:`settled`):
+#: at the 0.3 m/s kick the body moves 3e-10 m and its velocity changes by
+#: ~1e-8 m/s, below every error measured, while each foot makes the
+#: instantaneous slip that brings a force outside the friction cone onto it.
+SETTLE_DT = 1e-9
+#: Starts of the controls: ``equilibrium_state`` as built, and settled.
+STARTS = ("as built", "settled")
+
+
+def settled(model, x0, p=None):
+    """The state after one step of :data:`SETTLE_DT` from ``x0``: the feet on the cone.
+
+    ``equilibrium_state`` holds every foot where it lands with the force of a
+    foot that sticks; below the legs' |P_τ|/N (0.24 at rest on level ground)
+    those forces lie outside the friction cone (1.4), and the massless feet
+    slip at t = 0⁺ by a finite amount. From such a start the first half kick
+    of every run uses forces that its contact step then discards: an error
+    h/2·ΔF/m once, first order in Δt whatever the slip rule. After this step
+    the stored forces are those of the settled feet.
+
+    Parameters
+    ----------
+    model : StepModel
+    x0 : ndarray, shape (nx,)
+    p : ndarray, shape (np,), optional
+        Default the scene's values.
+    """
+    p = model.default_p if p is None else p
+    return np.asarray(model.step(x0, p, SETTLE_DT)[0], dtype=float).ravel()
 
 
 def control_scene(mu, kick_v, kick_w, duration=CONTROL_DURATION, name="control"):
@@ -344,21 +401,32 @@ def final_state(scene, model, x0, dt):
 
 
 def controls(progress=print):
-    """Final-state errors of the control runs (see :data:`CONTROLS`), VM."""
+    """Final-state errors of the control runs (see :data:`CONTROLS`), VM.
+
+    Every control runs from each start of :data:`STARTS` with each slip rule
+    of :data:`SLIP_RULES`; the control that sticks has no force outside the
+    cone to settle and runs from its start as built only.
+    """
     rows = []
     for name, (mu, kick_v, kick_w) in CONTROLS.items():
-        scene, x0 = control_scene(mu, kick_v, kick_w, name=name)
-        model = build_model(scene)
-        ref, _ = final_state(scene, model, x0, CONTROL_DT_REF)
-        errs = []
-        for dt in CONTROL_DTS:
-            state, traj = final_state(scene, model, x0, dt)
-            errs.append(float(np.linalg.norm(state - ref)))
-        slip = float(np.mean(traj.mode[1:] == 2))
-        order = sve.convergence_order(CONTROL_DTS, errs, dt_max=max(CONTROL_DTS))[0]
-        rows.append({"control": name, "mu": mu, "errors": errs, "order": order, "slip": slip})
-        progress(f"control {name!r}: errors {['%.2e' % e for e in errs]}, order "
-                 f"{order:.2f}, slip fraction {slip:.2f}")
+        for rule in SLIP_RULES:
+            scene, x_built = control_scene(mu, kick_v, kick_w, name=name)
+            scene = scene.with_(slip=rule)
+            model = build_model(scene)
+            for start in STARTS if mu < STICK_MU else STARTS[:1]:
+                x0 = settled(model, x_built) if start == "settled" else x_built
+                ref, _ = final_state(scene, model, x0, CONTROL_DT_REF)
+                errs = []
+                for dt in CONTROL_DTS:
+                    state, traj = final_state(scene, model, x0, dt)
+                    errs.append(float(np.linalg.norm(state - ref)))
+                slip = float(np.mean(traj.mode[1:] == 2))
+                order = sve.convergence_order(CONTROL_DTS, errs, dt_max=max(CONTROL_DTS))[0]
+                rows.append({"control": name, "mu": mu, "start": start, "rule": rule,
+                             "errors": errs, "order": order, "slip": slip})
+                progress(f"control {name!r}, {start}, {rule}: errors "
+                         f"{['%.2e' % e for e in errs]}, order {order:.2f}, slip fraction "
+                         f"{slip:.2f}")
     return rows
 
 
@@ -368,12 +436,14 @@ def controls_text(rows):
              f"linear absorber ({CONTROL_STIFFNESS:g} N/m) on a level plane, started at rest on "
              f"its feet with a velocity kick, {CONTROL_DURATION:g} s on the VM; error of the "
              "final position and velocity (one 6-vector, m and m/s) against "
-             f"Δt = {CONTROL_DT_REF:g} s.", "",
-             "| control | μ | " + " | ".join(f"Δt = {d:g}" for d in CONTROL_DTS)
-             + " | order | slipping samples |",
-             "|---|---:|" + "---:|" * (len(CONTROL_DTS) + 2)]
+             f"Δt = {CONTROL_DT_REF:g} s. Start: `equilibrium_state` as built (with μ = 0.1 "
+             "its stored forces lie outside the friction cone), or settled (one step of "
+             f"{SETTLE_DT:g} s: the feet on the cone, `settled()`).", "",
+             "| control | μ | start | slip rule | "
+             + " | ".join(f"Δt = {d:g}" for d in CONTROL_DTS) + " | order | slipping samples |",
+             "|---|---:|---|---|" + "---:|" * (len(CONTROL_DTS) + 2)]
     for r in rows:
-        lines.append(f"| {r['control']} | {r['mu']:g} | "
+        lines.append(f"| {r['control']} | {r['mu']:g} | {r['start']} | {r['rule']} | "
                      + " | ".join(f"{e:.2e}" for e in r["errors"])
                      + f" | {r['order']:.2f} | {r['slip']:.2f} |")
     return "\n".join(lines)
@@ -391,7 +461,7 @@ def main(argv=None):
         return
     started = time.perf_counter()
     rows = []
-    for name, variant, scene in scenes():
+    for name, variant, _, scene in scenes():
         if args.only and args.only not in name and args.only not in variant:
             continue
         rows += run_case(name, variant, scene)

@@ -42,6 +42,13 @@ __all__ = ["Body", "Scene", "SceneError", "symmetric_legs", "load_scene", "scene
 #: first predicted (second order, twice the contact cost).
 TANGENT_PLANES = ("start", "end")
 
+#: How the implicit contact step turns a sliding foot's slip direction over a
+#: step (``symcushion.contact_midpoint``): ``"backward"``, along the force of
+#: the end of the step (backward Euler: first order when the direction turns);
+#: ``"midpoint"``, along the fitted mean of the start and end forces (second
+#: order, a Newton correction after the backward-Euler step).
+SLIP_RULES = ("backward", "midpoint")
+
 
 def _vec(name, value, size=3):
     return vector(name, value, (size,))
@@ -124,6 +131,9 @@ class Scene:
     name : str
     tangent_plane : {'end', 'start'}
         Where the obstacle is replaced by its tangent plane (:data:`TANGENT_PLANES`).
+    slip : {'backward', 'midpoint'}
+        The slip rule of the implicit contact step (:data:`SLIP_RULES`);
+        ``'midpoint'`` needs ``method='implicit'``.
     """
 
     body: Body
@@ -136,6 +146,7 @@ class Scene:
     gravity: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, -9.81]))
     name: str = "scene"
     tangent_plane: str = "end"
+    slip: str = "backward"
 
     def __post_init__(self):
         if not isinstance(self.body, Body):
@@ -149,6 +160,11 @@ class Scene:
         self.mu = real("mu", self.mu, nonnegative=True)
         self.method = choice("method", self.method, METHODS)
         self.tangent_plane = choice("tangent_plane", self.tangent_plane, TANGENT_PLANES)
+        self.slip = choice("slip", self.slip, SLIP_RULES)
+        if self.slip != "backward" and self.method != "implicit":
+            raise ValueError(f"`slip` = {self.slip!r} corrects the implicit contact step's slip; "
+                             f"`method` is {self.method!r}. Set method = 'implicit' or "
+                             "slip = 'backward'.")
         self.dt = _positive("dt", self.dt, "s")
         self.duration = _positive("duration", self.duration, "s")
         self.gravity = _vec("gravity", self.gravity)
@@ -349,7 +365,7 @@ def _terrain(t: Table):
     return Terrain, (x, y, heights.reshape(x.size, y.size))
 
 
-_SCENE_KEYS = ("name", "mu", "method", "dt", "duration", "gravity", "tangent_plane")
+_SCENE_KEYS = ("name", "mu", "method", "dt", "duration", "gravity", "tangent_plane", "slip")
 _BODY_KEYS = ("mass", "inertia", "position", "attitude", "velocity", "angular_velocity")
 
 
@@ -403,7 +419,8 @@ def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
                         gravity=s.get("gravity", (0.0, 0.0, -9.81), kind="vector", size=3),
                         name=s.get("name", Path(source).stem, kind="string"),
                         tangent_plane=s.get("tangent_plane", "end", kind="string",
-                                            choices=TANGENT_PLANES))
+                                            choices=TANGENT_PLANES),
+                        slip=s.get("slip", "backward", kind="string", choices=SLIP_RULES))
         s.finish(known=_SCENE_KEYS)
     top.finish(known=("scene", "body", "legs", "leg", "obstacle"))
     problems.raise_if_any()

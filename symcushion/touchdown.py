@@ -52,6 +52,7 @@ import numpy as np
 
 from .contact import contact_step_call
 from .contact_guards import at_least, at_most
+from .contact_midpoint import midpoint_slip_call
 from .layout import (BODY_OUT, BODY_STATE, LEG_OUT, LEG_STATE, MODES, ParamLayout, default_p,
                      output_layout, param_layout, quat_exp, quat_mul, quat_to_rot,
                      quat_to_rot_np, state_layout)
@@ -254,6 +255,9 @@ def build_model(scene: Scene) -> StepModel:
             l = l + n_b * ca.dot(n_b, R1.T @ (r_pred - r_s))
             out = contact_step_call(scene.method, P0, Dp, n_b, l, mu, u0,
                                     friction=friction)
+        if scene.slip == "midpoint" and friction:
+            # second-order slip direction (symcushion.contact_midpoint); μ = 0 has none
+            out = midpoint_slip_call(P0, Dp, n_b, l, mu, out)
         stays = ca.logic_and(active, out["contact"] > 0.5)
         rho1 = ca.if_else(stays, rho_s + out["delta"], rest[j])
         foot_w = pos1 + R1 @ rho1

@@ -9,9 +9,12 @@ horizons, the two findings its conclusion rests on:
   level ground, μ large, kicked upwards so that it hops off its four feet
   together and lands again, or rocked about a horizontal axis) the step
   converges at second order;
-* as soon as the feet slide (same lander, μ small, kicked sideways) it
-  converges at first order: the contact step's backward-Euler slip, whose
-  direction turns, limits the order even without any event.
+* as soon as the feet slide (same lander, μ small, kicked sideways) the
+  default backward-Euler slip, whose direction turns, converges at first
+  order, both from the start as built (whose stored forces lie outside the
+  friction cone) and from the settled start (feet on the cone); from the
+  settled start the midpoint slip rule (``slip = "midpoint"``) converges at
+  second order.
 
 Each fit is a regression over five Δt against a fine reference that is
 itself checked against a finer one. The scenes are the study's controls.
@@ -60,13 +63,17 @@ FIRST_ORDER_BAND = (0.8, 1.3)
 REFERENCE_SHARE = 0.05
 
 
-def _errors(mu, kick_v, kick_w, dt_ref):
+def _errors(mu, kick_v, kick_w, dt_ref, slip="backward", settle=False):
     """Final-state errors at DTS, the reference's own error, and the slip share at the finest Δt.
 
-    ``dt_ref`` is (reference Δt, check Δt) in s.
+    ``dt_ref`` is (reference Δt, check Δt) in s; ``slip`` the scene's slip
+    rule; ``settle`` starts from the settled state (``event_order.settled``).
     """
     scene, x0 = event_order.control_scene(mu, kick_v, kick_w, duration=DURATION)
+    scene = scene.with_(slip=slip)
     model = build_model(scene)
+    if settle:
+        x0 = event_order.settled(model, x0)
     ref, _ = event_order.final_state(scene, model, x0, dt_ref[0])
     check, _ = event_order.final_state(scene, model, x0, dt_ref[1])
     errors = []
@@ -101,6 +108,35 @@ def test_a_slide_is_first_order():
     assert FIRST_ORDER_BAND[0] <= order <= FIRST_ORDER_BAND[1], (order, errors)
 
 
+@pytest.mark.parametrize("slip", event_order.SLIP_RULES)
+def test_a_settled_slide_is_second_order_with_the_midpoint_rule(slip):
+    # the same slide from its settled start: the backward-Euler slip stays
+    # first order, the midpoint slip rule reaches second order
+    errors, ref_error, share = _errors(0.1, (0.3, 0.0, 0.0), (0.0, 0.0, 0.0), SLIDE_REF,
+                                       slip=slip, settle=True)
+    assert share > 0.9
+    assert ref_error < REFERENCE_SHARE * errors[-1], (ref_error, errors)
+    order = _order(errors)
+    if slip == "backward":
+        assert FIRST_ORDER_BAND[0] <= order <= FIRST_ORDER_BAND[1], (order, errors)
+    else:
+        assert order >= MIN_SECOND_ORDER, (order, errors)
+
+
+def test_settling_puts_the_stored_forces_on_the_cone():
+    scene, x0 = event_order.control_scene(0.1, (0.3, 0.0, 0.0), (0.0, 0.0, 0.0))
+    model = build_model(scene)
+    xl = event_order.state_layout(len(scene.legs))
+    for x, outside in ((x0, True), (event_order.settled(model, x0), False)):
+        for j in range(len(scene.legs)):
+            P = xl.get(x, "force_body", j)   # body frame; the plane is level, the body too
+            ratio = np.hypot(P[0], P[1]) / P[2]
+            assert (ratio > 0.1 * (1 + 1e-6)) == outside, (j, ratio)
+    moved = np.linalg.norm(xl.get(event_order.settled(model, x0), "position")
+                           - xl.get(x0, "position"))
+    assert moved < 1e-9
+
+
 @pytest.mark.parametrize("variant", event_order.VARIANTS)
 def test_variants_remove_their_events(variant):
     data = event_order.read_toml(ROOT / "studies" / "lander_slope.toml")
@@ -119,3 +155,14 @@ def test_bad_variant_is_rejected():
     data = event_order.read_toml(ROOT / "studies" / "lander_slope.toml")
     with pytest.raises(ValueError, match="`variant`"):
         event_order._variant_data(data, "slippery")
+    with pytest.raises(ValueError, match="`slip`"):
+        event_order._variant_data(data, "all events", "trapezoid")
+
+
+def test_every_variant_runs_with_each_slip_rule():
+    cases = event_order.scenes()
+    slope = {(variant, rule) for name, variant, rule, _ in cases if name == "lander_slope"}
+    assert len(slope) == len(event_order.VARIANTS) * len(event_order.SLIP_RULES)
+    assert all(scene.slip == rule for _, _, rule, scene in cases)
+    hop = [rule for name, _, rule, _ in cases if name == "lander_hop"]
+    assert sorted(hop) == sorted(event_order.SLIP_RULES)
