@@ -133,7 +133,8 @@ class DesignProblem(_DesignSpace, _Constraints, _GradientCheck):
     # -- construction -----------------------------------------------------------
     def _model(self, scene):
         key = (tuple(map(id, scene.legs)), tuple(map(id, scene.obstacles)), scene.mu,
-               scene.method, scene.tangent_plane, scene.body.mass, scene.body.inertia.tobytes(),
+               scene.method, scene.tangent_plane, scene.slip, scene.body.mass,
+               scene.body.inertia.tobytes(),
                scene.gravity.tobytes())
         if key not in self._models:
             self._models[key] = build_model(scene)
