@@ -1,11 +1,13 @@
 """How much accuracy does a second of computing buy? The speed-vs-error study.
 
-Question: for the Fig. 3 scene (μ = 0), the Fig. 4 scene (μ = 0.05) and a
-four-legged lander on a 10° slope (``studies/lander_slope.toml``), how does
-the error of each contact step (paper, robust, implicit) fall with the time
-step Δt, at what orders, and what does each error level cost per simulated
-second, in CasADi's virtual machine (``METHOD/vm``) and as compiled C
-(``METHOD/c``)? The peers of ``symcushion.peers``, a penalty contact model
+Question: for the Fig. 3 scene (μ = 0), the Fig. 4 scene (μ = 0.05), a
+four-legged lander on a 10° slope (``studies/lander_slope.toml``) and a
+three-legged lander that hops (``studies/lander_hop.toml``), how does the
+error of each variant (:data:`~.grid.VARIANTS`: the contact steps paper,
+robust and implicit, and the implicit step with the midpoint slip rule)
+fall with the time step Δt, at what orders, and what does each error level
+cost per simulated second, in CasADi's virtual machine (``VARIANT/vm``) and
+as compiled C (``VARIANT/c``)? The peers of ``symcushion.peers``, a penalty contact model
 integrated by CVODES (``penalty-cvodes/rtol=...``) and MuJoCo (``mujoco``),
 are measured the same way when that module is importable.
 
@@ -68,13 +70,12 @@ them from here) and must not define any:
 """
 from __future__ import annotations
 
-from symcushion.contact import METHODS
-
 from .csv_io import read_csv, write_csv
 from .grid import (BEST_OF, BUILD, CHUNK, COLUMNS, DOC, DT_GRID, DT_REF, FIGURES, FLOOR_FACTOR,
                    MUJOCO_TIMESTEPS, ORDER_DT_MAX, PEER_OUTPUT_DT, PENALTY_RTOLS,
                    QUICK_DT_GRID, QUICK_DT_REF, QUICK_OUT, REBOUND_AIM, REBOUND_BOUND,
-                   REPEAT_BELOW, REQUIRED_COLUMNS, ROOT, SCENES, STUDIES, VM_MAX_STEPS)
+                   REPEAT_BELOW, REQUIRED_COLUMNS, ROOT, SCENES, STUDIES, VARIANTS,
+                   VM_MAX_STEPS)
 from .main import main
 from .metrics import errors, metrics, rebound_speed, result_row, trajectory_error
 from .orders import (ERROR_KEYS, convergence_order, cost_at_error, equal_error_comparison,
@@ -87,10 +88,10 @@ from .scene_runs import reference, run_scene
 
 __all__ = [
     "BEST_OF", "BUILD", "CHUNK", "COLOURS", "COLUMNS", "DOC", "DT_GRID", "DT_REF",
-    "ERROR_KEYS", "FIGURES", "FLOOR_FACTOR", "METHODS", "MUJOCO_TIMESTEPS", "ORDER_DT_MAX",
+    "ERROR_KEYS", "FIGURES", "FLOOR_FACTOR", "MUJOCO_TIMESTEPS", "ORDER_DT_MAX",
     "PEER_OUTPUT_DT", "PEER_STYLE", "PENALTY_RTOLS", "PLOT_FLOOR", "QUICK_DT_GRID",
     "QUICK_DT_REF", "QUICK_OUT", "REBOUND_AIM", "REBOUND_BOUND", "REPEAT_BELOW",
-    "REQUIRED_COLUMNS", "ROOT", "Run", "SCENES", "STUDIES", "TITLES", "VM_MAX_STEPS",
+    "REQUIRED_COLUMNS", "ROOT", "Run", "SCENES", "STUDIES", "TITLES", "VARIANTS", "VM_MAX_STEPS",
     "convergence_order", "cost_at_error", "equal_error_comparison", "errors", "main",
     "metrics", "orders_table", "pareto", "peer_rows", "plot", "read_csv", "rebound_speed",
     "reduce_states", "reference", "report_text", "result_row", "run_from_peer", "run_scene",

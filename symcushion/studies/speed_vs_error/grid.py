@@ -59,6 +59,18 @@ SCENES = {
     "fig3": {"file": "fig3.toml", "rebound": "ballistic", "deflection": "hinge"},
     "fig4": {"file": "fig4.toml", "rebound": "max_up", "deflection": "hinge"},
     "lander_slope": {"file": "lander_slope.toml", "rebound": "max_up", "deflection": "stroke"},
+    "lander_hop": {"file": "lander_hop.toml", "rebound": "max_up", "deflection": "stroke"},
+}
+
+#: The simulator variants the study compares, each with the scene settings it
+#: sets: the three contact steps (docs/contact.md), and the exact step with the
+#: second-order slip rule (docs/scenes.md, "Slip rule"; on a frictionless
+#: scene it is the implicit step itself).
+VARIANTS = {
+    "paper": {"method": "paper"},
+    "robust": {"method": "robust"},
+    "implicit": {"method": "implicit"},
+    "implicit+midpoint": {"method": "implicit", "slip": "midpoint"},
 }
 
 #: Columns of the CSV; the first five are the ones the study is built around.

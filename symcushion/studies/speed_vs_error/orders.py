@@ -11,9 +11,8 @@ import math
 
 import numpy as np
 
-from symcushion.contact import METHODS
 
-from .grid import FLOOR_FACTOR, ORDER_DT_MAX, SCENES
+from .grid import FLOOR_FACTOR, ORDER_DT_MAX, SCENES, VARIANTS
 
 
 def convergence_order(dts, errs, floor: float = 0.0, dt_max: float = ORDER_DT_MAX):
@@ -40,7 +39,7 @@ def orders_table(rows, floors) -> list:
     """Fitted orders per scene, contact step and metric (compiled rows; VM rows are equal)."""
     out = []
     for scene in SCENES:
-        for method in METHODS:
+        for method in VARIANTS:
             sel = [r for r in rows if r["scene"] == scene and r["method"] == f"{method}/c"
                    and r["status"] == "ok"]
             if not sel or scene not in floors:
@@ -89,13 +88,13 @@ def equal_error_comparison(rows, scene="fig3", key="rebound_error"):
     out = []
     fronts = {m: pareto([(r["wall_per_sim_second"], r.get(key, np.nan)) for r in rows
                          if r["scene"] == scene and r["method"] == f"{m}/c"
-                         and r["status"] == "ok"]) for m in METHODS}
+                         and r["status"] == "ok"]) for m in VARIANTS}
     for r in rows:
         if r["scene"] != scene or r["backend"] != "peer" or r["status"] != "ok":
             continue
         entry = {"peer": r["method"], "dt": r["dt"], "tolerance": r["tolerance"],
                  "error": r[key], "peer_cost": r["wall_per_sim_second"], "ours": {}}
-        for m in METHODS:
+        for m in VARIANTS:
             cost, how = cost_at_error(fronts[m], r[key])
             entry["ours"][m] = (cost, how)
         out.append(entry)

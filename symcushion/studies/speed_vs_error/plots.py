@@ -9,15 +9,16 @@ from pathlib import Path
 
 import numpy as np
 
-from symcushion.contact import METHODS
 
-from .grid import SCENES
+from .grid import SCENES, VARIANTS
 
 
-COLOURS = {"paper": "tab:blue", "robust": "tab:orange", "implicit": "tab:green"}
+COLOURS = {"paper": "tab:blue", "robust": "tab:orange", "implicit": "tab:green",
+           "implicit+midpoint": "tab:olive"}
 PEER_STYLE = {"penalty-cvodes": ("tab:red", "s"), "mujoco": ("tab:purple", "D")}
 TITLES = {"fig3": "Fig. 3 (μ = 0)", "fig4": "Fig. 4 (μ = 0.05)",
-          "lander_slope": "lander, 10° slope (μ = 0.4)"}
+          "lander_slope": "lander, 10° slope (μ = 0.4)",
+          "lander_hop": "3-leg lander with a hop, 5° slope (μ = 0.4)"}
 #: Errors are drawn at no less than this (a log axis has no 0).
 PLOT_FLOOR = 1e-14
 
@@ -34,7 +35,7 @@ def plot(rows, orders, path, floors=None) -> None:
     fig, axes = plt.subplots(2, len(scenes), figsize=(5.2 * len(scenes), 9.0), squeeze=False)
     for col, scene in enumerate(scenes):
         ax = axes[0, col]
-        for method in METHODS:
+        for method in VARIANTS:
             for backend, style in (("c", "-o"), ("vm", "--^")):
                 sel = [r for r in rows if r["scene"] == scene and r["method"] ==
                        f"{method}/{backend}" and r["status"] == "ok"]
@@ -60,7 +61,7 @@ def plot(rows, orders, path, floors=None) -> None:
         if col == 0:
             ax.legend(fontsize=7, ncol=2, loc="lower left")
         ax = axes[1, col]
-        for method in METHODS:
+        for method in VARIANTS:
             sel = [r for r in rows if r["scene"] == scene and r["method"] == f"{method}/c"
                    and r["status"] == "ok"]
             if not sel:

@@ -12,9 +12,9 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from symcushion.contact import METHODS
 
-from .grid import BEST_OF, FLOOR_FACTOR, ORDER_DT_MAX, REBOUND_AIM, REBOUND_BOUND, SCENES
+from .grid import (BEST_OF, FLOOR_FACTOR, ORDER_DT_MAX, REBOUND_AIM, REBOUND_BOUND, SCENES,
+                   VARIANTS)
 from .orders import ERROR_KEYS, equal_error_comparison
 from .plots import TITLES
 
@@ -108,7 +108,7 @@ def _scene_tables(rows) -> list:
                   "| method | Δt (s) | rebound err (m/s) | peak decel err | peak defl. err | "
                   "trajectory err | C (s/sim-s) | VM (s/sim-s) | status |",
                   "|---|---:|---:|---:|---:|---:|---:|---:|---|"]
-        for method in METHODS:
+        for method in VARIANTS:
             for r in [r for r in sel if r["method"] == f"{method}/c"]:
                 vm = next((v for v in sel if v["method"] == f"{method}/vm"
                            and v["dt"] == r["dt"]), None)
@@ -148,13 +148,13 @@ def _acceptance_text(rows) -> list:
                   "the compiled simulator is faster. \"≥\": the peer's error is above the "
                   "compiled method's coarsest point, whose cost is an upper bound.", "",
                   "| peer run | rebound err (m/s) | peer (s/sim-s) | " +
-                  " | ".join(f"{m}/c ratio" for m in METHODS) + " |",
-                  "|---|---:|---:|" + "---:|" * len(METHODS)]
+                  " | ".join(f"{m}/c ratio" for m in VARIANTS) + " |",
+                  "|---|---:|---:|" + "---:|" * len(VARIANTS)]
         for e in comp:
             # the penalty runs are named by their tolerance already
             knob = "" if e["peer"].startswith("penalty") else f" (Δt {e['dt']:g})"
             cells = []
-            for m in METHODS:
+            for m in VARIANTS:
                 cost, how = e["ours"][m]
                 if how == "not reached":
                     cells.append("not reached")
@@ -176,7 +176,7 @@ def _acceptance_text(rows) -> list:
                      f"\\|Δy′\\| < {REBOUND_AIM:g} (the aim) | largest grid Δt with "
                      f"\\|Δy′\\| < {REBOUND_AIM:g} |")
         lines.append("|---|---:|---|---|---:|")
-        for m in METHODS:
+        for m in VARIANTS:
             sel = [r for r in fig3 if r["contact_step"] == m and r["rebound_kind"] == "ballistic"]
             at = next((r for r in sel if abs(r["dt"] - 1e-3) < 1e-12), None)
             aim = [r["dt"] for r in sel if abs(r["rebound_dv"]) < REBOUND_AIM]

@@ -2,7 +2,7 @@
 
 Owns building the models of a scene (compiled C per contact method, the
 CasADi VM), the reference run and its self-check at twice its step, and
-the loop over contact methods, backends and Δt that yields the scene's
+the loop over variants (contact step and slip rule), backends and Δt that yields the scene's
 rows. It must not fit orders, plot or write files.
 """
 from __future__ import annotations
@@ -12,11 +12,10 @@ import time
 from pathlib import Path
 
 from symcushion.codegen import compiled_model
-from symcushion.contact import METHODS
 from symcushion.scene import Scene, load_scene
 from symcushion.simulate import build_model
 
-from .grid import BUILD, CHUNK, SCENES, STUDIES, VM_MAX_STEPS
+from .grid import BUILD, CHUNK, SCENES, STUDIES, VARIANTS, VM_MAX_STEPS
 from .metrics import errors, metrics, result_row, trajectory_error
 from .peer_runs import peer_rows
 from .runs import simulate_chunked
@@ -49,7 +48,7 @@ def run_scene(name: str, dt_grid, dt_ref, *, vm=True, peers=True, progress=print
     spec = SCENES[name]
     base = load_scene(STUDIES / spec["file"])
     notes = []
-    folders = {m: BUILD / f"{name}-{m}" for m in METHODS}
+    folders = {m: BUILD / f"{name}-{m}" for m in VARIANTS}
     ref, check = reference(base, folders["implicit"], dt_ref, progress)
     if not (ref.finite() and check.finite()):
         raise FloatingPointError(f"{name}: the reference run is not finite; lower DT_REF.")
@@ -61,8 +60,8 @@ def run_scene(name: str, dt_grid, dt_ref, *, vm=True, peers=True, progress=print
     del check
     floor = dict(ref_check["self_error"], trajectory_error=ref_check["trajectory"])
     rows = []
-    for method in METHODS:
-        scene = base.with_(method=method)
+    for method, settings in VARIANTS.items():
+        scene = base.with_(**settings)
         started = time.perf_counter()
         cmodel = compiled_model(scene, folders[method], steps=CHUNK)
         c_build = _build_seconds(folders[method])
