@@ -19,14 +19,20 @@ that change, the confusion between classes, P(stable) with its Wilson
 interval and a paired (McNemar) test of the change, and the CPU per case of
 each variant; plus the marginal case of the envelope study in every variant.
 
+Class changes (``--class-changes``): 2,000 cases at Δt = 1, 0.5 and
+0.25 ms with each slip rule of the implicit step — the share of cases whose
+class changes when Δt is halved.
+
 Each writes its section of docs/envelope.md (``symcushion.report``).
 
     python studies/bench_envelope.py [--n 1000] [--full] [--accuracy] [--methods]
+                                     [--class-changes]
 """
 from __future__ import annotations
 
 import argparse
 import math
+from collections import Counter
 import os
 import platform
 import resource
@@ -191,6 +197,54 @@ def accuracy() -> str:
         f"{int(np.sum(upright))} cases whose reference tilt stays below 60° (a lander "
         "that tumbles has no meaningful pointwise reference).\n\n" + "\n".join(lines))
     return text
+
+
+#: Cases and Δt of the class-change comparison, and the slip rules compared
+#: (docs/scenes.md, "Slip rule").
+CHANGE_CASES = 2000
+CHANGE_DTS = (1e-3, 5e-4, 2.5e-4)
+SLIP_RULES = ("backward", "midpoint")
+#: Class pairs listed per comparison, the most frequent first.
+CHANGE_PAIRS = 5
+
+
+def class_changes(n: int = CHANGE_CASES) -> str:
+    """Share of cases whose class changes when Δt is halved, for each slip rule."""
+    base = load_study(STUDY).with_(n=n)
+    cond = sample_conditions(base)
+    classes = {}
+    for slip in SLIP_RULES:
+        for dt in CHANGE_DTS:
+            study = base.with_(scene=base.scene.with_(dt=dt, slip=slip))
+            started = time.perf_counter()
+            r = evaluate(study, cond, threads=os.cpu_count() or 1, cache_dir=CACHE,
+                         progress=True)
+            classes[slip, dt] = r["class"]
+            print(f"slip {slip}, dt = {dt:g}: {time.perf_counter() - started:.1f} s",
+                  flush=True)
+    lines = ["| slip rule | " + " | ".join(
+        f"{a * 1e3:g} → {b * 1e3:g} ms" for a, b in zip(CHANGE_DTS, CHANGE_DTS[1:]))
+        + " | P(stable) at " + " / ".join(f"{dt * 1e3:g}" for dt in CHANGE_DTS) + " ms |",
+        "|---|" + "---:|" * (len(CHANGE_DTS) - 1) + "---|"]
+    for slip in SLIP_RULES:
+        cells = [f"{np.mean(classes[slip, a] != classes[slip, b]):.2%}"
+                 for a, b in zip(CHANGE_DTS, CHANGE_DTS[1:])]
+        cells.append(" / ".join(f"{np.mean(classes[slip, dt] == 'stable'):.3f}"
+                                for dt in CHANGE_DTS))
+        lines.append(f"| {slip} | " + " | ".join(cells) + " |")
+    pairs = []
+    for slip in SLIP_RULES:
+        for a, b in zip(CHANGE_DTS, CHANGE_DTS[1:]):
+            moves = Counter(f"{x} → {y}" for x, y in zip(classes[slip, a], classes[slip, b])
+                            if x != y)
+            pairs.append(f"* {slip}, {a * 1e3:g} → {b * 1e3:g} ms: " + ", ".join(
+                f"{k} {v}" for k, v in moves.most_common(CHANGE_PAIRS)))
+    lines += ["", "The most frequent changes (class at Δt → class at Δt/2, cases):", ""] + pairs
+    return (f"Produced by `python studies/bench_envelope.py --class-changes`: the first {n:,} "
+            f"cases of the example study (its seed, {base.seed}), exact contact step, run at "
+            "Δt = " + ", ".join(f"{dt * 1e3:g}" for dt in CHANGE_DTS) + " ms with each slip "
+            "rule of the implicit step; the share of cases whose class changes when Δt is "
+            "halved.\n\n" + "\n".join(lines))
 
 
 def _variant_label(variant) -> str:
@@ -443,11 +497,17 @@ def main(argv=None) -> None:
     parser.add_argument("--methods", action="store_true",
                         help="compare contact methods, tangent planes and Δt with "
                              "'implicit' at 0.5 ms instead")
+    parser.add_argument("--class-changes", action="store_true",
+                        help="share of classes that change when Δt is halved, per slip rule, "
+                             "instead")
     parser.add_argument("--threads", type=int, default=os.cpu_count() or 1,
                         help="threads of --methods (default every core)")
     args = parser.parse_args(argv)
     if args.methods:
         report.write_section(DOCS, METHODS_HEADING, methods(args.threads),
+                             title="# Touchdown stability envelope")
+    elif args.class_changes:
+        report.write_section(DOCS, "Class changes with Δt and the slip rule", class_changes(),
                              title="# Touchdown stability envelope")
     elif args.accuracy:
         report.write_section(DOCS, "Accuracy against Δt", accuracy(),
