@@ -36,9 +36,9 @@ __all__ = [
 # |det(K + lam I)| <= DET_TOL (|K|_F + lam)^2: round-off leaves det at
 # ~1e-16 of that scale at a true root, and 1e-12 sits well above it.
 DET_TOL = 1e-12
-# A candidate solves lam |g| = mu N when the two sides agree to ROOT_TOL
-# relative. Simple roots come out of the refined closed form to ~1e-15; a
-# double root (the secular function touching zero) only to ~1e-8, so 1e-6 keeps those, and
+# A polished candidate solves lam |g| = mu N when the two sides agree to
+# ROOT_TOL relative. Simple roots are polished to ~1e-15; a double root (the
+# secular function touching zero) only to ~1e-8, so 1e-6 keeps those, and
 # rejects the squared equation's roots of lam |g| = -mu N (relative residual
 # 2) and the real parts of complex pairs more than ~1e-3 off the real axis.
 ROOT_TOL = 1e-6

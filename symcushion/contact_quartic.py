@@ -2,12 +2,11 @@
 
 This module owns one numerical kernel: the real roots λ ≥ 0 of a polynomial
 of degree at most four, Q(λ) = Σ_k Q_k λ^k, as a fixed list of candidates
-computed by a closed form (Ferrari's resolvent cubic) whose two quadratic
-factors are refined by a Newton step, with no data-dependent control flow.
-It knows nothing about contact, friction or forces: the caller
-(``symcushion.contact_implicit``) forms the coefficients, validates each
-candidate against its own equation, chooses among them and polishes the
-chosen one. It must not decide which root is physical.
+computed by a closed form (Ferrari's resolvent cubic) and polished by Newton
+steps, with no data-dependent control flow. It knows nothing about contact,
+friction or forces: the caller (``symcushion.contact_implicit``) forms the
+coefficients, validates each candidate against its own equation and chooses
+among them. It must not decide which root is physical.
 
 Numerics (why the steps below are as they are):
 
@@ -17,20 +16,18 @@ Numerics (why the steps below are as they are):
   vanishing constant term (a root at λ = 0) makes the closed form divide by
   zero; the t-quartic degenerates only when −c is a root of Q, which is
   irrelevant for λ ≥ 0.
-- Ferrari's closed form factors the depressed quartic (t shifted by b/4)
-  into two quadratics. When the roots sit in two clusters (two close roots
-  near t = 0, two near t = 1) the shift is large against the spread within
-  a cluster and the depressed coefficients lose the digits that separate
-  the close roots (a root 28 % off was seen). One Newton step on the four
-  equations of the factorisation, with residuals from the undepressed
-  coefficients, restores the factors to round-off (FACTOR_STEPS); each
-  factor's roots then come from the stable quadratic formula. The
-  candidates are accurate enough for the caller's residual test without a
-  Newton polish of their own (four steps per root before the refinement).
-- A complex pair re +- i im becomes the two reals re +- im. Two close real
-  roots can come out as a complex pair with a tiny imaginary part; the
-  caller's test then sees two numbers on either side of the pair rather
-  than its midpoint, and its own polish starts from the one it keeps.
+- Ferrari's closed form returns four numbers: the real roots, and for a
+  complex pair re +- i im the two reals re +- im. Two close real roots can
+  come out as a complex pair with a tiny imaginary part; re +- im then
+  starts Newton on either side of the pair rather than at its midpoint
+  (where Q' ~ 0 would throw the step far away). Every one of the four is
+  polished and the caller's residual test decides.
+- Each candidate is polished by POLISH_STEPS Newton steps in λ/c when
+  t ≤ 1/2 and in c/λ (the reversed polynomial) when t > 1/2: both variables
+  are then ≤ 1, and Newton converges from the closed form's absolute error
+  whenever the root is separated from the others by more than that error.
+  The last step is a Newton step at a converged root, so its derivative is
+  the implicit-function derivative −∂Q/∂θ / Q'(λ).
 """
 from __future__ import annotations
 
@@ -40,16 +37,18 @@ import casadi as ca
 
 from .contact_guards import TINY, at_least, at_most, exceeds, safe_div, safe_sqrt
 
-__all__ = ["FACTOR_STEPS", "quartic_roots"]
+__all__ = ["POLISH_STEPS", "quartic_roots"]
 
-# Newton steps on the two quadratic factors of the quartic after Ferrari's
-# closed form (see _refine_factors). One brings the factors from the
-# depressed quartic's lost digits back to round-off: with it the candidates
-# need no Newton polish of their own (none of the 60 000 random cases of
-# tests/test_contact_exact.py goes wrong). Without it each candidate needed
-# 4 Newton steps: with 2, 3 of those cases took another solution or lifted
-# off (close roots far below c).
-FACTOR_STEPS = 1
+# Newton steps per candidate after the closed form. One reaches round-off
+# for a well-separated root; roots a few decades below the scale c, or with a
+# close neighbour, start ~1e-4 off. With 2 steps such roots were missed in
+# about 1 of 2 000 random cases (tests/oracle_coulomb.py); with 4, in none of
+# 60 000.
+POLISH_STEPS = 4
+# Bound of the polished variable (lam/c or c/lam, in [0, 1] at a root the
+# closed form placed well): Newton steps from a start where Q is flat are
+# clipped to it, so that Q(x) cannot overflow.
+X_MAX = 4.0
 # The guarded division and square root are those of the contact step
 # (contact_guards: |x| <= TINY is taken as 0, the untaken branch is finite).
 _TINY = TINY
@@ -88,59 +87,13 @@ def _largest_cubic_root(A, B, C):
     return z
 
 
-def _factor_residual(factors, b, cc, d, e):
-    """How far (t^2 + A1 t + B1)(t^2 + A2 t + B2) is from t^4 + b t^3 + cc t^2 + d t + e."""
-    A1, B1, A2, B2 = factors
-    return A1 + A2 - b, B1 + B2 + A1 * A2 - cc, A1 * B2 + A2 * B1 - d, B1 * B2 - e
-
-
-def _refine_factors(factors, b, cc, d, e):
-    """One Newton step on the factorisation t^4 + b t^3 + cc t^2 + d t + e = (t^2 + A1 t + B1)(t^2 + A2 t + B2).
-
-    Ferrari's factors come from the depressed quartic, which loses the
-    digits of d and e when the roots sit in two clusters (the shift b/4 is
-    large against the spread within a cluster: two close roots at t ~ 0, two
-    at t ~ 1). The residual of the four coefficient equations uses d and e
-    themselves, so one step restores the factors to round-off, and the close
-    roots with them. The 4 x 4 Newton system is solved by elimination of
-    dA2 and Cramer's rule on the rest; its determinant is the resultant of
-    the two factors, zero when they share a root. The step is kept only
-    where it lowers the residual (a shared root, or a factor far off).
-    """
-    A1, B1, A2, B2 = factors
-    F1, F2, F3, F4 = _factor_residual(factors, b, cc, d, e)
-    R2 = A1 * F1 - F2
-    R3 = B1 * F1 - F3
-    dA, dB = A2 - A1, B2 - B1
-    w = A2 * B1 - A1 * B2
-    det = dA * w + dB * dB
-    inv = _div(1.0, det)
-    dA1 = (R2 * w + R3 * dB + F4 * dA) * inv
-    dB1 = (dA * (R3 * B1 + F4 * A1) - (R2 * B1 + F4) * dB) * inv
-    dB2 = ((R2 * B2 + F4) * dB - dA * (F4 * A2 + R3 * B2)) * inv
-    new = (A1 + dA1, B1 + dB1, A2 - F1 - dA1, B2 + dB2)
-    old_res = sum(r * r for r in (F1, F2, F3, F4))
-    new_res = sum(r * r for r in _factor_residual(new, b, cc, d, e))
-    better = new_res < old_res
-    return tuple(ca.if_else(better, x_new, x_old) for x_new, x_old in zip(new, factors))
-
-
-def _quadratic_roots(A, B):
-    """Two starts for the roots of t^2 + A t + B: the real roots, or re +- im of a complex pair.
-
-    Real roots by the stable formula: the larger in magnitude
-    -(A + sign(A) sqrt(disc))/2 and the other B over it, neither a
-    difference of nearly equal numbers. A complex pair re +- i im becomes
-    the two starts re +- im: two close real roots that round-off turned
-    complex are then approached from either side, not from their midpoint,
-    where Q' ~ 0.
-    """
-    disc = A * A - 4 * B
-    root = _sqrt(ca.fabs(disc))
-    big = -(A + ca.if_else(A >= 0, root, -root)) / 2
-    real = disc >= 0
-    return [ca.if_else(real, big, (root - A) / 2),
-            ca.if_else(real, _div(B, big), -(A + root) / 2)]
+def _horner(coeffs, x):
+    """(p(x), p'(x)) for coefficients [a0, a1, ..., a4] (ascending powers)."""
+    p, dp = coeffs[-1], 0.0
+    for a in reversed(coeffs[:-1]):
+        dp = dp * x + p
+        p = p * x + a
+    return p, dp
 
 
 def quartic_roots(Q, c):
@@ -157,10 +110,8 @@ def quartic_roots(Q, c):
     Returns
     -------
     list of 4 casadi.SX
-        Candidate roots λ_i ≥ 0, not polished. Every real root λ ≥ 0 of Q
-        that is separated from the others is among them to round-off of the
-        refined factors (a double root to about the square root of it); a
-        candidate
+        Candidate roots λ_i ≥ 0. Every real root λ ≥ 0 of Q that is
+        separated from the others is among them to round-off; a candidate
         may also be the real part of a complex pair or a clipped negative
         root, so the caller must check each one against its own equation.
     """
@@ -183,15 +134,27 @@ def quartic_roots(Q, c):
     m = ca.if_else(r1 >= 0, 1.0, -1.0) * _sqrt((p + z) ** 2 - 4 * r0)
     alpha = (p + z - m) / 2
     beta = (p + z + m) / 2
-    # The two factors in t (y = t + b/4): t^2 + A1 t + B1 and t^2 + A2 t + B2.
-    factors = (b / 2 + s, b * b / 16 + s * b / 4 + alpha,
-               b / 2 - s, b * b / 16 - s * b / 4 + beta)
-    for _ in range(FACTOR_STEPS):
-        factors = _refine_factors(factors, b, cc, d, e)
     roots_t = []
-    for A, B in (factors[:2], factors[2:]):
-        roots_t += _quadratic_roots(A, B)
+    for sgn, const in ((1.0, alpha), (-1.0, beta)):
+        disc = s * s - 4 * const
+        # A complex pair re +- i im becomes the two starts re +- im: two close
+        # real roots that round-off turned complex are then approached from
+        # either side, not from their midpoint, where Q' ~ 0.
+        root = _sqrt(ca.fabs(disc))
+        roots_t += [(-sgn * s + root) / 2 - b / 4, (-sgn * s - root) / 2 - b / 4]
 
-    # lambda = c t/(1 - t); t = 1 (a root at infinity) gives 0, as a
-    # guarded division, and the caller's check rejects it.
-    return [c * _div(t, 1 - t) for t in (at_most(at_least(t, 0.0), 1.0) for t in roots_t)]
+    rev = list(reversed(q))  # in c/lambda: sum_k q_k x^(4-k)
+    out = []
+    for t in roots_t:
+        t = at_most(at_least(t, 0.0), 1.0)
+        small = t <= 0.5
+        # x = lambda/c = t/(1 - t) for t <= 1/2, x = c/lambda = (1 - t)/t else
+        # t in [0, 1]: the denominator is >= 1/2 on either side, no guard needed
+        x = ca.if_else(small, t, 1 - t) / ca.if_else(small, 1 - t, t)
+        coeffs = [ca.if_else(small, q[k], rev[k]) for k in range(5)]
+        for _ in range(POLISH_STEPS):
+            f, df = _horner(coeffs, x)
+            # kept in [0, X_MAX]: a step thrown far by a flat Q cannot overflow
+            x = at_most(at_least(x - _div(f, df), 0.0), X_MAX)
+        out.append(c * ca.if_else(small, x, _div(1.0, x)))
+    return out
