@@ -223,15 +223,16 @@ def _build_branches(friction):
     the trial force P_t = P0 + Dp l (``stick_trial``). ``..._slip`` and
     ``..._stick`` take the step's inputs, those two and ``other`` (zeros
     from the caller) and return the step's outputs. The slip branch is the
-    full step, trial included: given N_t, T_t and t1 as inputs instead, it
-    would be about 20 ns faster per slip but its Jacobian through the call
-    would move by up to 1e-11 relative, since CasADi simplifies across the
-    trial in the full step's graph (the square of T_t's guarded square
-    root becomes its argument). The stick branch returns delta = l, P = P_t
-    from the trial, through the full step's own ``merge_stick`` on the
-    symbolic flag, so that a -0.0 in `l` comes out +0.0 as from the full
-    step (CasADi's ``if_else`` is a sum); its unused slip values are the
-    input ``other``, which CasADi cannot simplify away.
+    full step, trial included. Given N_t, T_t and t1 as inputs instead it
+    was 27 ns faster per slip (of 660), but it gave the full step's bits
+    only with T_t^2 passed too (in one graph CasADi simplifies the square of
+    T_t's guarded square root to its argument), and even then its Jacobian
+    through the call moved by up to 1.4e-11 relative to the largest entry,
+    where the full step's is matched to the bit. The stick branch returns
+    delta = l, P = P_t from the trial, through the full step's own
+    ``merge_stick`` on the symbolic flag, so that a -0.0 in `l` comes out
+    +0.0 as from the full step (CasADi's ``if_else`` is a sum); its unused
+    slip values are the input ``other``, which CasADi cannot simplify away.
     """
     f = _build("implicit", friction)
     inputs = f.sx_in()

@@ -5,7 +5,9 @@ force law (1.3), valid in 3-D, docs/paper-notes.md §3 item 6) and its
 pieces: the tangent frame, the secular equation of the slip multiplier, its
 quartic, the check of each candidate against the unsquared equation, and the
 selection rule (docs/contact.md, "Selection rule"), with the tolerances they
-use. It must not find polynomial roots itself (``symcushion.contact_quartic``
+use; and the step's split into its stick trial, its slip part and their
+merge (``stick_trial``, ``slip_step``, ``merge_stick``), which the
+conditional call of ``symcushion.contact`` reuses. It must not find polynomial roots itself (``symcushion.contact_quartic``
 does, without knowing about contact), implement the printed or robust step,
 validate inputs or build Functions (``symcushion.contact``).
 """
@@ -28,7 +30,6 @@ __all__ = [
     "ROOT_TOL",
     "implicit_step",
     "merge_stick",
-    "slip_step",
 ]
 
 # A candidate lam of the implicit step is a root of det(K + lam I) -- g(lam)
@@ -338,11 +339,11 @@ def slip_step(P0, Dp, n, l, mu, u0, N_t, T_t, t1, friction):
 
     N_t, T_t and t1 are the trial force's normal and tangential magnitudes
     (N) and its unit tangent direction (3, 1), the expressions of
-    :func:`stick_trial`. (Passed as symbols from a separate Function, they
-    would give the same values but not the same bits of the Jacobian:
-    CasADi simplifies across the trial, e.g. the square of T_t's guarded
-    square root to its argument.) Returns the dict of :func:`implicit_step` for the
-    slip or lift-off answer (its value where the trial sticks is unused).
+    :func:`stick_trial`. (Passed as numbers from a separate Function they
+    would not give the full step's bits: in one graph CasADi simplifies
+    across the trial, e.g. the square of T_t's guarded square root to its
+    argument.) Returns the dict of :func:`implicit_step` for the slip or
+    lift-off answer (its value where the trial sticks is unused).
     """
     # Slip in the tangent frame (t1, t2) of the trial force, p = (T_t, 0).
     t2, K11, K12, K21, K22, a1, a2, K_norm = _tangent_stiffness(Dp, n, t1)
