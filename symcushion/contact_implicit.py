@@ -5,7 +5,9 @@ force law (1.3), valid in 3-D, docs/paper-notes.md §3 item 6) and its
 pieces: the tangent frame, the secular equation of the slip multiplier, its
 quartic, the check of each candidate against the unsquared equation, and the
 selection rule (docs/contact.md, "Selection rule"), with the tolerances they
-use. It must not find polynomial roots itself (``symcushion.contact_quartic``
+use; and the step's split into its stick trial, its slip part and their
+merge (``stick_trial``, ``slip_step``, ``merge_stick``), which the
+conditional call of ``symcushion.contact`` reuses. It must not find polynomial roots itself (``symcushion.contact_quartic``
 does, without knowing about contact), implement the printed or robust step,
 validate inputs or build Functions (``symcushion.contact``).
 """
@@ -27,6 +29,7 @@ __all__ = [
     "ROOT_SCALE_RANGE",
     "ROOT_TOL",
     "implicit_step",
+    "merge_stick",
 ]
 
 # A candidate lam of the implicit step is a root of det(K + lam I) -- g(lam)
@@ -301,20 +304,48 @@ def implicit_step(P0, Dp, n, l, mu, u0, friction):
 
     All its roots are found (``contact_quartic.quartic_roots``), plus
     lam = 0 (the frictionless slide, a solution only when mu N = 0); each is
-    checked against the unsquared equation with N > 0, and the solution of
-    least slip |g| is taken (docs/contact.md, "Selection rule"). Stick wins
-    when the trial force is inside the cone; lift-off only when no
-    solution exists.
+    checked against the unsquared equation with N > 0, and the first
+    solution on the branch connected to zero slip is taken (docs/contact.md,
+    "Selection rule"). Stick wins when the trial force is inside the cone;
+    lift-off only when no solution exists.
 
     Arguments and returned dict as :func:`symcushion.contact.contact_step_expr`
     after its conversion: P0, n, l, u0 (3, 1), Dp (3, 3) and mu (1, 1)
     ``casadi.SX``, in N, m and N/m; ``k`` holds the slip g (3, 1), m.
     `friction` False builds the mu = 0 step: lam = 0 only, no quartic.
     """
-    # 1. Stick trial.
     P_t, N_t, T_t, t1, stick = stick_trial(P0, Dp, n, l, mu)
+    return merge_stick(stick, l, P_t, slip_step(P0, Dp, n, l, mu, u0, N_t, T_t, t1, friction))
 
-    # 2. Slip in the tangent frame (t1, t2) of the trial force, p = (T_t, 0).
+
+def merge_stick(stick, l, P_t, slip):
+    """The step's outputs: the stick answer (delta = l, P = P_t) where `stick`, else `slip`.
+
+    Shapes as :func:`implicit_step`'s outputs; `slip` is a dict of the same
+    keys. Shared by the full step and the branches of the conditional
+    wrapper of ``symcushion.contact``, so that both give the same bits.
+    """
+    zero = ca.SX.zeros(3, 1)
+    return dict(
+        delta=ca.if_else(stick, l, slip["delta"]),
+        P=ca.if_else(stick, P_t, slip["P"]),
+        k=ca.if_else(stick, zero, slip["k"]),
+        contact=ca.if_else(stick, 1.0, slip["contact"]),
+    )
+
+
+def slip_step(P0, Dp, n, l, mu, u0, N_t, T_t, t1, friction):
+    """The implicit step for a foot that does not stick: slip or lift-off.
+
+    N_t, T_t and t1 are the trial force's normal and tangential magnitudes
+    (N) and its unit tangent direction (3, 1), the expressions of
+    :func:`stick_trial`. (Passed as numbers from a separate Function they
+    would not give the full step's bits: in one graph CasADi simplifies
+    across the trial, e.g. the square of T_t's guarded square root to its
+    argument.) Returns the dict of :func:`implicit_step` for the slip or
+    lift-off answer (its value where the trial sticks is unused).
+    """
+    # Slip in the tangent frame (t1, t2) of the trial force, p = (T_t, 0).
     t2, K11, K12, K21, K22, a1, a2, K_norm = _tangent_stiffness(Dp, n, t1)
     lams = [ca.SX(0.0)]  # the frictionless slide g = K^-1 p
     if friction:
@@ -329,8 +360,8 @@ def implicit_step(P0, Dp, n, l, mu, u0, friction):
     if friction:
         candidates += _family_slips(K11, K12, K21, K22, a1, a2, T_t, N_t, mu, K_norm)
 
-    # 3. Selection (docs/contact.md, "Selection rule"), then the polish of
-    #    the chosen root; family candidates keep their own g.
+    # Selection (docs/contact.md, "Selection rule"), then the polish of the
+    # chosen root; family candidates keep their own g.
     found, lam_best, g1, g2, family = _select(
         candidates, len(lams), _largest_pole(K11, K12, K21, K22, K_norm),
         a1, a2, N_t, mu, CONE_TOL * safe_sqrt(N_t * N_t + T_t * T_t))
@@ -340,7 +371,7 @@ def implicit_step(P0, Dp, n, l, mu, u0, friction):
         polish = ca.logic_and(ok, family == 0)
         g1, g2 = ca.if_else(polish, h1, g1), ca.if_else(polish, h2, g2)
 
-    # 4. In contact: delta = l - g, P = P0 + Dp delta (1.3), clean-up.
+    # In contact: delta = l - g, P = P0 + Dp delta (1.3), clean-up.
     g = g1 * t1 + g2 * t2
     delta = l - g
     # On the cone, opposite the slip, by construction: P_tau = mu N g/|g|
@@ -352,10 +383,5 @@ def implicit_step(P0, Dp, n, l, mu, u0, friction):
     P = N * n + mu * N * g_hat
     lift = ca.logic_or(ca.logic_not(found), N <= 0)
     zero = ca.SX.zeros(3, 1)
-    slip = lift_off(lift, u0, dict(delta=delta, P=P, k=ca.if_else(lift, zero, g), contact=ca.SX(1.0)))
-    return dict(
-        delta=ca.if_else(stick, l, slip["delta"]),
-        P=ca.if_else(stick, P_t, slip["P"]),
-        k=ca.if_else(stick, zero, slip["k"]),
-        contact=ca.if_else(stick, 1.0, slip["contact"]),
-    )
+    return lift_off(lift, u0, dict(delta=delta, P=P, k=ca.if_else(lift, zero, g),
+                                   contact=ca.SX(1.0)))

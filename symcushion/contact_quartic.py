@@ -149,7 +149,8 @@ def quartic_roots(Q, c):
         t = at_most(at_least(t, 0.0), 1.0)
         small = t <= 0.5
         # x = lambda/c = t/(1 - t) for t <= 1/2, x = c/lambda = (1 - t)/t else
-        x = ca.if_else(small, _div(t, 1 - t), _div(1 - t, t))
+        # t in [0, 1]: the denominator is >= 1/2 on either side, no guard needed
+        x = ca.if_else(small, t, 1 - t) / ca.if_else(small, 1 - t, t)
         coeffs = [ca.if_else(small, q[k], rev[k]) for k in range(5)]
         for _ in range(POLISH_STEPS):
             f, df = _horner(coeffs, x)

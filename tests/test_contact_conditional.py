@@ -1,7 +1,8 @@
 """The implicit step called through its conditional wrapper (contact._build_call).
 
-The called Function evaluates the stick test and then either the stick
-branch or the full step (``Function.conditional``). These tests hold it to
+The called Function evaluates the stick trial and then either the stick
+branch or the slip branch, which starts from that trial
+(``Function.conditional``). These tests hold it to
 the full SX step of :func:`symcushion.contact.contact_step`: the same bits
 on stick, slip, lift-off and free cases, the same Jacobian, the same values
 as a call node inside an SX graph and through its derivatives there.
@@ -65,7 +66,7 @@ def test_call_is_a_switch_between_stick_and_full_step():
 def test_bit_identical_on_stick_slip_lift_off_and_free(cases):
     full = contact_step("implicit")
     call = contact._build_call("implicit", True)
-    test, _ = contact._build_stick(True)
+    test, _ = contact._build_branches(True)
     seen = dict(stick=0, slip=0, lift=0)
     for i in range(len(cases["mu"])):
         args = _args(cases, i)
@@ -73,7 +74,7 @@ def test_bit_identical_on_stick_slip_lift_off_and_free(cases):
         got = [np.asarray(x).tobytes() for x in call(*args)]
         assert got == want, f"case {i}"
         k, c = (np.asarray(x).ravel() for x in full(*args)[2:])
-        if float(test(*args)):
+        if float(test(*args)[0]):
             seen["stick"] += 1
         elif c[0] > 0.5:
             seen["slip"] += 1
