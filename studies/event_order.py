@@ -301,9 +301,11 @@ def plot(rows, fits, path):
 
     fig, axes = plt.subplots(2, 2, figsize=(15, 13))
     axes = axes.ravel()
-    # guide slopes over the finest decade of the grid, under the data
-    dts = np.array([min(DT_GRID), 10 * min(DT_GRID)])
     for ax, (scene, key, title) in zip(axes, PANELS):
+        # guide slopes over the finest decade of the panel's grid, under the data
+        finest = min((r["dt"] for r in rows if r["scene"] == scene and r["kind"] == "run"),
+                     default=min(DT_GRID))
+        dts = np.array([finest, 10 * finest])
         anchors = []
         for fit in (f for f in fits if f["scene"] == scene):
             sel = [r for r in rows if (r["scene"], r["variant"]) == (scene, fit["variant"])
@@ -317,7 +319,7 @@ def plot(rows, fits, path):
             ax.plot([r["dt"] for r in sel], [r[key] for r in sel], line, marker=marker,
                     color=colour, ms=5, lw=1.6 if rule.endswith("branch)") else 1.2,
                     mfc=colour if face else "none", label=label)
-            anchors += [r[key] for r in sel if r["dt"] == min(DT_GRID)]
+            anchors += [r[key] for r in sel if r["dt"] == finest]
         anchor = 0.3 * min(anchors, default=1.0)
         for p, ls in ((1, ":"), (2, "-.")):
             ax.plot(dts, anchor * (dts / dts[0]) ** p, ls, color="grey", lw=1.0,

@@ -25,7 +25,10 @@ Scheme (one step of length h, §3 of the paper with a velocity-Verlet body):
    past a fixed obstacle. The contact step gives δ_j, P_j; the foot moves to
    ρ_j + δ_j, is projected back onto the curved surface, or returns to its
    unloaded pose on lift-off;
-4. second half kick with the new forces.
+4. second half kick with the new forces; with ``events = "branch"`` it also
+   carries the kick correction (B1) of ``symcushion.branch_switch`` for the
+   legs whose axial force changed between its loading and unloading
+   branches inside the step.
 
 Order: velocity Verlet is second order and symplectic for smooth forces; the
 contact law is non-smooth, so the measured order is stated by the tests
