@@ -49,8 +49,10 @@ Output: ``figures/event_order.csv`` (one row per scene, variant and Δt),
 root: ``python studies/event_order.py`` (seventeen cases, 7 min on the
 shared 2-core machine with other jobs running, plus gcc the first time;
 builds are cached in ``build/event_order/``); ``--controls`` runs only the
-control runs (about 4 min), ``--only TEXT`` only the cases whose scene or
-variant contains TEXT (no output written).
+control runs (about 4 min), ``--cost`` only the interleaved timing of the
+located switch against its peers (:func:`cost_check`, section "Events:
+cost", about 1 min), ``--only TEXT`` only the cases whose scene or variant
+contains TEXT (no output written).
 """
 from __future__ import annotations
 
@@ -187,6 +189,14 @@ def slip_fraction(model, scene, dt=SLIP_DT) -> float:
     return float(np.sum(traj.mode[1:] == 2) / max(np.sum(contact), 1))
 
 
+def leg_reversals(traj) -> tuple:
+    """Per leg, the steps whose stroke change has the other sign than the previous step's,
+    both in contact: one per turning point of the stroke (a branch switch)."""
+    change = np.sign(np.diff(np.asarray(traj.stroke), axis=0))
+    change *= np.asarray(traj.contact)[1:] > 0.5
+    return tuple(int(n) for n in np.sum(change[1:] * change[:-1] < 0, axis=0))
+
+
 def reversals(model, scene, dts=REVERSAL_DTS) -> list:
     """Stroke reversals of each leg in contact, at each Δt of ``dts`` (VM runs).
 
@@ -198,9 +208,7 @@ def reversals(model, scene, dts=REVERSAL_DTS) -> list:
     out = []
     for dt in dts:
         traj = simulate(scene.with_(dt=dt), model=at_step(model, scene, dt), monitor=False)
-        change = np.sign(np.diff(np.asarray(traj.stroke), axis=0))
-        change *= np.asarray(traj.contact)[1:] > 0.5
-        out.append(tuple(int(n) for n in np.sum(change[1:] * change[:-1] < 0, axis=0)))
+        out.append(leg_reversals(traj))
     return out
 
 
@@ -520,11 +528,14 @@ def switch_case(events, progress=print):
     variant = case_label("clean switch", scene.slip, events)
     base = {"scene": "switch control", "variant": variant, "slip": scene.slip, "events": events}
     rows = [{**base, "kind": "reference check", "dt": SWITCH_REF[0], "status": "ok",
-             "final_error": final_error(ref, check), "slip_fraction": 0.0, "reversals": "1 1 1"}]
+             "final_error": final_error(ref, check), "slip_fraction": 0.0}]
+    flips = {}
     for dt in SWITCH_DTS:
         _, run = final_state(scene, model, x0, dt)
         rows.append({**base, "kind": "run", "dt": dt, "status": "ok",
                      "final_error": final_error(run, ref)})
+        flips[dt] = " ".join(map(str, leg_reversals(run)))
+    rows[0]["reversals"] = " / ".join(flips[dt] for dt in REVERSAL_DTS)
     progress(f"switch control / {variant}: final-state errors "
              + " ".join(f"{r['final_error']:.2e}" for r in rows[1:]))
     return rows
@@ -585,13 +596,61 @@ def controls_text(rows):
     return "\n".join(lines)
 
 
+#: Interleaved timing of the located switch (``--cost``): Δt (s) and rounds;
+#: each round runs the default, the midpoint and the midpoint + branch case of
+#: a variant once, and the fastest of the rounds counts, so that the load of
+#: the shared machine falls on all three alike.
+COST_DT = 1e-4
+COST_ROUNDS = 7
+
+
+def cost_check(progress=print):
+    """Best-of-rounds CPU per simulated second of each branch case and its two peers."""
+    cases = {(name, label): scene for name, label, _, scene in scenes()}
+    out = []
+    for name, label in sorted(k for k, scene in cases.items() if scene.events == "branch"):
+        base = label.split(" (")[0]
+        labels = (base, case_label(base, "midpoint"), label)
+        models = {lab: compiled_model(cases[(name, lab)], BUILD / cases[(name, lab)].name,
+                                      steps=CHUNK) for lab in labels}
+        best = dict.fromkeys(labels, float("inf"))
+        for _ in range(COST_ROUNDS):
+            for lab in labels:
+                run = sve.simulate_chunked(models[lab], cases[(name, lab)], COST_DT, passes=1)
+                best[lab] = min(best[lab], run.info["cpu"] / run.info["sim_seconds"])
+        out.append((name, base, *(best[lab] for lab in labels)))
+        progress(f"{name} / {base}: " + ", ".join(f"{lab} {best[lab]:.3g}" for lab in labels))
+    return out
+
+
+def cost_text(rows):
+    """The section "Events: cost" of the docs."""
+    lines = ["Interleaved timing (`python studies/event_order.py --cost`): compiled C, "
+             f"Δt = {COST_DT:g} s, CPU s per simulated second, the fastest of {COST_ROUNDS} "
+             "rounds, each round running the three cases of a variant one after the other. "
+             "The elastic variant has no unloading branch: its midpoint and midpoint + branch "
+             "steps are the same graph, and their ratio is the scatter of the timing.", "",
+             "| scene | variant | default | midpoint | midpoint + branch | "
+             "branch / midpoint | branch / default |", "|---|---|---:|---:|---:|---:|---:|"]
+    for name, base, default, midpoint, branch in rows:
+        lines.append(f"| {name} | {base} | {default:.3g} | {midpoint:.3g} | {branch:.3g} | "
+                     f"{branch / midpoint:.2f} | {branch / default:.2f} |")
+    return "\n".join(lines)
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--only", default=None, help="run only the cases whose scene name or "
                         "variant contains this text (no output is written)")
     parser.add_argument("--controls", action="store_true",
                         help="run only the control runs and write their section")
+    parser.add_argument("--cost", action="store_true",
+                        help="run only the interleaved timing of the located switch and write "
+                        "its section")
     args = parser.parse_args(argv)
+    if args.cost:
+        report.write_section(DOC, "Events: cost", cost_text(cost_check()))
+        return
     if args.controls:
         report.write_section(DOC, "Events: controls", controls_text(controls()))
         return

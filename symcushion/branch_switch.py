@@ -45,9 +45,10 @@ from .contact_guards import at_least, at_most
 
 __all__ = ["locates_switch", "branch_switch_kick"]
 
-#: Smallest |s₀ − s_½| (m/s) divided by in θ: a switch is flagged only when
-#: the two rates differ in sign or the branches of the node forces differ;
-#: where they are equal the zero is not in the step and θ is clipped.
+#: Smallest |2(s₀ − s_½)| (m/s) that θ divides by: a stroke rate that does
+#: not change over the step has no zero in it, and the quotient is clipped
+#: to [−½, ½] anyway; the floor only keeps the division finite (and its
+#: derivative) where the branches of the node forces differ all the same.
 RATE_FLOOR = 1e-12
 
 

@@ -51,12 +51,6 @@ MAX_DEFAULT_ORDER = 1.5
 REF_SHARE = 0.1
 
 
-def _reversals(traj):
-    """Stroke reversals of each leg in contact (one per turn onto the other branch)."""
-    change = np.sign(np.diff(np.asarray(traj.stroke), axis=0))
-    change *= np.asarray(traj.contact)[1:] > 0.5
-    return np.sum(change[1:] * change[:-1] < 0, axis=0).tolist()
-
 
 def _final_errors(events):
     scene, x0 = event_order.switch_control(events)
@@ -76,7 +70,7 @@ def switch_runs():
 def test_the_switch_control_switches_once_per_leg(switch_runs):
     _, _, traj = switch_runs["branch"]
     assert np.all(np.asarray(traj.contact)[-1] > 0.5)
-    assert _reversals(traj) == [1, 1, 1]
+    assert event_order.leg_reversals(traj) == (1, 1, 1)
 
 
 def test_second_order_through_a_branch_switch(switch_runs):
@@ -165,7 +159,7 @@ def test_lander_gradient_with_the_branch_switch():
     scenario = problem.scenarios[0]
     assert scenario.scene.events == "branch"
     traj = simulate(scenario.scene, x0=scenario.x0, monitor=False)
-    assert _reversals(traj) == [1] * len(scenario.scene.legs)   # the switch is inside
+    assert event_order.leg_reversals(traj) == (1,) * len(scenario.scene.legs)   # the switch is inside
     check = problem.check_gradient(problem.initial)
     assert check["relative"] <= GRADIENT_TOL, check
     assert check["objective"] <= GRADIENT_TOL, check
