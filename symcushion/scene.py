@@ -49,6 +49,12 @@ TANGENT_PLANES = ("start", "end")
 #: order, a Newton correction after the backward-Euler step).
 SLIP_RULES = ("backward", "midpoint")
 
+#: What the touchdown step does at the events inside a step
+#: (``symcushion.branch_switch``): ``"none"``, the velocity-Verlet kick;
+#: ``"branch"``, the kick weighted at the located switch of each leg's axial
+#: loading/unloading branch (second order through the force jump).
+EVENT_RULES = ("none", "branch")
+
 
 def _vec(name, value, size=3):
     return vector(name, value, (size,))
@@ -134,6 +140,9 @@ class Scene:
     slip : {'backward', 'midpoint'}
         The slip rule of the implicit contact step (:data:`SLIP_RULES`);
         ``'midpoint'`` needs ``method='implicit'``.
+    events : {'none', 'branch'}
+        What the body step does at the absorbers' branch switches inside a
+        step (:data:`EVENT_RULES`).
     """
 
     body: Body
@@ -147,6 +156,7 @@ class Scene:
     name: str = "scene"
     tangent_plane: str = "end"
     slip: str = "backward"
+    events: str = "none"
 
     def __post_init__(self):
         if not isinstance(self.body, Body):
@@ -161,6 +171,7 @@ class Scene:
         self.method = choice("method", self.method, METHODS)
         self.tangent_plane = choice("tangent_plane", self.tangent_plane, TANGENT_PLANES)
         self.slip = choice("slip", self.slip, SLIP_RULES)
+        self.events = choice("events", self.events, EVENT_RULES)
         if self.slip != "backward" and self.method != "implicit":
             raise ValueError(f"`slip` = {self.slip!r} corrects the implicit contact step's slip; "
                              f"`method` is {self.method!r}. Set method = 'implicit' or "
@@ -365,7 +376,8 @@ def _terrain(t: Table):
     return Terrain, (x, y, heights.reshape(x.size, y.size))
 
 
-_SCENE_KEYS = ("name", "mu", "method", "dt", "duration", "gravity", "tangent_plane", "slip")
+_SCENE_KEYS = ("name", "mu", "method", "dt", "duration", "gravity", "tangent_plane", "slip",
+               "events")
 _BODY_KEYS = ("mass", "inertia", "position", "attitude", "velocity", "angular_velocity")
 
 
@@ -420,7 +432,8 @@ def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
                         name=s.get("name", Path(source).stem, kind="string"),
                         tangent_plane=s.get("tangent_plane", "end", kind="string",
                                             choices=TANGENT_PLANES),
-                        slip=s.get("slip", "backward", kind="string", choices=SLIP_RULES))
+                        slip=s.get("slip", "backward", kind="string", choices=SLIP_RULES),
+                        events=s.get("events", "none", kind="string", choices=EVENT_RULES))
         s.finish(known=_SCENE_KEYS)
     top.finish(known=("scene", "body", "legs", "leg", "obstacle"))
     problems.raise_if_any()

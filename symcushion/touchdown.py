@@ -25,7 +25,10 @@ Scheme (one step of length h, §3 of the paper with a velocity-Verlet body):
    past a fixed obstacle. The contact step gives δ_j, P_j; the foot moves to
    ρ_j + δ_j, is projected back onto the curved surface, or returns to its
    unloaded pose on lift-off;
-4. second half kick with the new forces.
+4. second half kick with the new forces; with ``events = "branch"`` it also
+   carries the kick correction (B1) of ``symcushion.branch_switch`` for the
+   legs whose axial force changed between its loading and unloading
+   branches inside the step.
 
 Order: velocity Verlet is second order and symplectic for smooth forces; the
 contact law is non-smooth, so the measured order is stated by the tests
@@ -52,6 +55,7 @@ import numpy as np
 
 from .contact import contact_step_call
 from .contact_guards import at_least, at_most
+from .branch_switch import branch_switch_kick, locates_switch
 from .contact_midpoint import midpoint_slip_call
 from .layout import (BODY_OUT, BODY_STATE, LEG_OUT, LEG_STATE, MODES, ParamLayout, default_p,
                      output_layout, param_layout, quat_exp, quat_mul, quat_to_rot,
@@ -219,6 +223,7 @@ def build_model(scene: Scene) -> StepModel:
     new_feet, outputs = [], []
     force1 = ca.DM.zeros(3)
     torque1 = ca.DM.zeros(3)
+    switch_force, switch_torque = ca.DM.zeros(3), ca.DM.zeros(3)   # (B1), events = "branch"
     for j, (leg, foot) in enumerate(zip(legs, feet)):
         fns = leg.functions()
         p_leg = p[offsets[j][0]:offsets[j][1]]
@@ -268,6 +273,13 @@ def build_model(scene: Scene) -> StepModel:
         new_feet.append(dict(foot=foot_w, contact=ca.if_else(stays, 1.0, 0.0), force_body=P1))
         force1 = force1 + P1
         torque1 = torque1 + ca.cross(rho1, P1)
+        if scene.events == "branch" and locates_switch(leg):
+            # the kick at the located loading/unloading switch (symcushion.branch_switch)
+            dF, dT, _ = branch_switch_kick(
+                fns, p_leg, dict(rho0=rho_s, F0=foot["force_body"], rho1=rho1, F1=P1,
+                                 active=ca.logic_and(in_contact, stays)),
+                dict(h=h, R=R, R1=R1, v=vel, omega=omega, l=l))
+            switch_force, switch_torque = switch_force + dF, switch_torque + dT
 
         slipping = ca.dot(out["k"], out["k"]) > 0
         mode = ca.if_else(stays, ca.if_else(slipping, 2.0, 1.0),
@@ -280,8 +292,9 @@ def build_model(scene: Scene) -> StepModel:
 
     # 4. second half kick with the new forces
     acc1 = g + R1 @ force1 / m
-    vel1 = vel_h + h / 2 * acc1
-    omega1 = omega_h + h / 2 * (inertia_inv @ (torque1 - ca.cross(omega_h, inertia @ omega_h)))
+    vel1 = vel_h + h / 2 * acc1 + h * switch_force / m
+    omega1 = (omega_h + h / 2 * (inertia_inv @ (torque1 - ca.cross(omega_h, inertia @ omega_h)))
+              + h * (inertia_inv @ switch_torque))
 
     x_next = xl.pack(position=pos1, velocity=vel1, attitude=quat1, angular_velocity=omega1,
                      **{f: [foot[f] for foot in new_feet] for f in ("foot", "contact",

@@ -161,8 +161,18 @@ def test_bad_variant_is_rejected():
 
 def test_every_variant_runs_with_each_slip_rule():
     cases = event_order.scenes()
-    slope = {(variant, rule) for name, variant, rule, _ in cases if name == "lander_slope"}
+    plain = [case for case in cases if case[3].events == "none"]
+    slope = {(variant, rule) for name, variant, rule, _ in plain if name == "lander_slope"}
     assert len(slope) == len(event_order.VARIANTS) * len(event_order.SLIP_RULES)
     assert all(scene.slip == rule for _, _, rule, scene in cases)
-    hop = [rule for name, _, rule, _ in cases if name == "lander_hop"]
+    hop = [rule for name, _, rule, _ in plain if name == "lander_hop"]
     assert sorted(hop) == sorted(event_order.SLIP_RULES)
+
+
+def test_the_branch_rows_run_the_located_switch_with_the_midpoint_rule():
+    branch = [case for case in event_order.scenes() if case[3].events == "branch"]
+    slope = sorted(variant for name, variant, _, _ in branch if name == "lander_slope")
+    assert slope == sorted(f"{v} (midpoint, branch)" for v in event_order.BRANCH_VARIANTS)
+    assert [variant for name, variant, _, _ in branch if name == "lander_hop"] == [
+        "all events (midpoint, branch)"]
+    assert all(scene.slip == "midpoint" for _, _, _, scene in branch)

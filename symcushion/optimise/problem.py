@@ -133,7 +133,7 @@ class DesignProblem(_DesignSpace, _Constraints, _GradientCheck):
     # -- construction -----------------------------------------------------------
     def _model(self, scene):
         key = (tuple(map(id, scene.legs)), tuple(map(id, scene.obstacles)), scene.mu,
-               scene.method, scene.tangent_plane, scene.slip, scene.body.mass,
+               scene.method, scene.tangent_plane, scene.slip, scene.events, scene.body.mass,
                scene.body.inertia.tobytes(),
                scene.gravity.tobytes())
         if key not in self._models:

@@ -1,0 +1,166 @@
+"""The absorber's branch switch located inside the step (``events = "branch"``).
+
+``symcushion.branch_switch`` weights the kick of the step in which a leg's
+axial force changes between its loading and unloading branches at the
+located switch time. These tests check that it does what it claims and
+nothing else: second order through a clean switch (the lander on level
+ground kicked down onto its crushable legs, one switch per leg, the scene
+of ``studies/event_order.py``'s :func:`switch_control`) where the default
+kick is first order; the step unchanged without an unloading branch (Figs.
+3–4, the lander's elastic variant) and in the default graph; the option
+validated; gradients through the scheme.
+"""
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import symcushion.touchdown as touchdown
+from symcushion.optimise import study_from_dict
+from symcushion.scene import SceneError, load_scene, read_toml, scene_from_dict
+from symcushion.simulate import build_model, initial_state, simulate
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _study():
+    spec = importlib.util.spec_from_file_location("event_order",
+                                                  ROOT / "studies" / "event_order.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+event_order = _study()
+
+#: Δt of the order fits (s): five halvings from 2 ms.
+DTS = (2e-3, 1e-3, 5e-4, 2.5e-4, 1.25e-4)
+#: Reference and its check (s): 12.5× and 25× below the finest fitted Δt.
+REF_DT, CHECK_DT = 1e-5, 5e-6
+#: The project's target order.
+MIN_SECOND_ORDER = 1.8
+#: The default kick through the same switch: an O(Δt) impulse error per
+#: switch, measured at order 0.85 on this scene; below this bound it is not
+#: second order, so the comparison shows what the scheme changes.
+MAX_DEFAULT_ORDER = 1.5
+#: The reference's own error (against its check) must stay below this share of
+#: the smallest fitted error, so that the fit measures the run, not the reference.
+REF_SHARE = 0.1
+
+
+
+def _final_errors(events):
+    scene, x0 = event_order.switch_control(events)
+    model = build_model(scene)
+    ref, traj = event_order.final_state(scene, model, x0, REF_DT)
+    check, _ = event_order.final_state(scene, model, x0, CHECK_DT)
+    errors = [np.linalg.norm(event_order.final_state(scene, model, x0, dt)[0] - ref)
+              for dt in DTS]
+    return np.array(errors), float(np.linalg.norm(ref - check)), traj
+
+
+@pytest.fixture(scope="module")
+def switch_runs():
+    return {events: _final_errors(events) for events in ("none", "branch")}
+
+
+def test_the_switch_control_switches_once_per_leg(switch_runs):
+    _, _, traj = switch_runs["branch"]
+    assert np.all(np.asarray(traj.contact)[-1] > 0.5)
+    assert event_order.leg_reversals(traj) == (1, 1, 1)
+
+
+def test_second_order_through_a_branch_switch(switch_runs):
+    errors, ref_error, _ = switch_runs["branch"]
+    assert ref_error <= REF_SHARE * errors.min(), (ref_error, errors)
+    order = np.polyfit(np.log(DTS), np.log(errors), 1)[0]
+    assert order >= MIN_SECOND_ORDER, (order, errors)
+
+
+def test_the_default_kick_is_not_second_order_there(switch_runs):
+    errors, ref_error, _ = switch_runs["none"]
+    assert ref_error <= REF_SHARE * errors.min(), (ref_error, errors)
+    order = np.polyfit(np.log(DTS), np.log(errors), 1)[0]
+    assert order <= MAX_DEFAULT_ORDER, (order, errors)
+
+
+def _same_step(scene):
+    """The step of ``scene`` with events 'none' and 'branch': equal graphs and outputs."""
+    plain, branch = build_model(scene), build_model(scene.with_(events="branch"))
+    assert plain.graph_size() == branch.graph_size()
+    x0, p = initial_state(scene), plain.default_p
+    for h in (1e-3, 0.2):   # free fall, then a step deep into the ground
+        a, b = plain.step(x0, p, h), branch.step(x0, p, h)
+        assert all(np.array_equal(np.asarray(u), np.asarray(v)) for u, v in zip(a, b))
+
+
+@pytest.mark.parametrize("path", ["studies/fig3.toml", "studies/fig4.toml"])
+def test_figs_3_4_are_unchanged(path):
+    # no unloading branch on the dome legs: nothing to locate, the Verlet step
+    _same_step(load_scene(ROOT / path))
+
+
+def test_without_unloading_branch_the_step_is_unchanged():
+    data = event_order._variant_data(read_toml(ROOT / "studies" / "lander_slope.toml"),
+                                     "elastic", "midpoint")
+    _same_step(scene_from_dict(data, "elastic"))
+
+
+def test_the_default_graph_does_not_contain_the_scheme(monkeypatch):
+    scene = load_scene(ROOT / "studies" / "lander_slope.toml")
+    assert scene.events == "none"
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("branch_switch_kick called")
+
+    monkeypatch.setattr(touchdown, "branch_switch_kick", refuse)
+    build_model(scene)                                 # the default never calls it
+    with pytest.raises(AssertionError, match="branch_switch_kick"):
+        build_model(scene.with_(events="branch"))
+
+
+def test_the_scheme_adds_to_the_graph_where_a_leg_has_a_jump():
+    scene = load_scene(ROOT / "studies" / "lander_slope.toml")
+    plain, branch = build_model(scene), build_model(scene.with_(events="branch"))
+    assert branch.graph_size()["instructions"] > plain.graph_size()["instructions"]
+
+
+def test_bad_events_is_rejected():
+    scene = load_scene(ROOT / "studies" / "lander_slope.toml")
+    with pytest.raises(ValueError, match="`events`.*'split'"):
+        scene.with_(events="split")
+    data = read_toml(ROOT / "studies" / "lander_slope.toml")
+    data["scene"]["events"] = "splitt"
+    with pytest.raises(SceneError, match="events"):
+        scene_from_dict(data, "bad.toml")
+
+
+#: The optimiser's bound on AD against central differences (tests/test_optimise.py).
+GRADIENT_TOL = 1e-5
+#: Simulated time of the gradient case (s): the vertical touchdown through
+#: the legs' turn onto their unloading branches (at 0.104 s at the initial
+#: design, every leg once).
+GRADIENT_DURATION = 0.15
+
+
+
+def test_lander_gradient_with_the_branch_switch():
+    # the lander design study's vertical touchdown, shortened, with the
+    # midpoint slip rule and the located branch switch: AD against central
+    # differences
+    data = read_toml(ROOT / "studies" / "optimise_lander.toml")
+    data["scene"].update(slip="midpoint", events="branch", duration=GRADIENT_DURATION)
+    data["scenario"] = [s for s in data["scenario"] if s["name"] == "vertical"]
+    problem = study_from_dict(data, "optimise_lander.toml:branch",
+                              base_dir=ROOT / "studies").problem
+    scenario = problem.scenarios[0]
+    assert scenario.scene.events == "branch"
+    traj = simulate(scenario.scene, x0=scenario.x0, monitor=False)
+    assert event_order.leg_reversals(traj) == (1,) * len(scenario.scene.legs)   # the switch is inside
+    check = problem.check_gradient(problem.initial)
+    assert check["relative"] <= GRADIENT_TOL, check
+    assert check["objective"] <= GRADIENT_TOL, check
+    assert check["worst_row"] <= GRADIENT_TOL, check
