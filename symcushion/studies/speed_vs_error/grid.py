@@ -65,12 +65,15 @@ SCENES = {
 #: The simulator variants the study compares, each with the scene settings it
 #: sets: the three contact steps (docs/contact.md), and the exact step with the
 #: second-order slip rule (docs/scenes.md, "Slip rule"; on a frictionless
-#: scene it is the implicit step itself).
+#: scene it is the implicit step itself), also with the absorbers' branch
+#: switch located inside the step (docs/scenes.md, "Branch switch"; without
+#: an unloading branch, as on Figs. 3–4, the same graph as without it).
 VARIANTS = {
     "paper": {"method": "paper"},
     "robust": {"method": "robust"},
     "implicit": {"method": "implicit"},
     "implicit+midpoint": {"method": "implicit", "slip": "midpoint"},
+    "implicit+midpoint+branch": {"method": "implicit", "slip": "midpoint", "events": "branch"},
 }
 
 #: Columns of the CSV; the first five are the ones the study is built around.
