@@ -12,7 +12,6 @@ validated; gradients through the scheme.
 """
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 
 import numpy as np
@@ -22,19 +21,11 @@ import symcushion.touchdown as touchdown
 from symcushion.optimise import study_from_dict
 from symcushion.scene import SceneError, load_scene, read_toml, scene_from_dict
 from symcushion.simulate import build_model, initial_state, simulate
+from symcushion.studies import event_order
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def _study():
-    spec = importlib.util.spec_from_file_location("event_order",
-                                                  ROOT / "studies" / "event_order.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-event_order = _study()
 
 #: Δt of the order fits (s): five halvings from 2 ms.
 DTS = (2e-3, 1e-3, 5e-4, 2.5e-4, 1.25e-4)

@@ -21,26 +21,19 @@ itself checked against a finer one. The scenes are the study's controls.
 """
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from symcushion.layout import state_layout
+from symcushion.scene import read_toml, scene_from_dict
 from symcushion.simulate import build_model
+from symcushion.studies import event_order
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def _study():
-    spec = importlib.util.spec_from_file_location("event_order",
-                                                  ROOT / "studies" / "event_order.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-event_order = _study()
 
 #: Δt of the order fits (s): five halvings.
 DTS = (2e-3, 1e-3, 5e-4, 2.5e-4, 1.25e-4)
@@ -126,7 +119,7 @@ def test_a_settled_slide_is_second_order_with_the_midpoint_rule(slip):
 def test_settling_puts_the_stored_forces_on_the_cone():
     scene, x0 = event_order.control_scene(0.1, (0.3, 0.0, 0.0), (0.0, 0.0, 0.0))
     model = build_model(scene)
-    xl = event_order.state_layout(len(scene.legs))
+    xl = state_layout(len(scene.legs))
     for x, outside in ((x0, True), (event_order.settled(model, x0), False)):
         for j in range(len(scene.legs)):
             P = xl.get(x, "force_body", j)   # body frame; the plane is level, the body too
@@ -139,9 +132,9 @@ def test_settling_puts_the_stored_forces_on_the_cone():
 
 @pytest.mark.parametrize("variant", event_order.VARIANTS)
 def test_variants_remove_their_events(variant):
-    data = event_order.read_toml(ROOT / "studies" / "lander_slope.toml")
-    scene = event_order.scene_from_dict(event_order._variant_data(data, variant))
-    base = event_order.scene_from_dict(data)
+    data = read_toml(ROOT / "studies" / "lander_slope.toml")
+    scene = scene_from_dict(event_order._variant_data(data, variant))
+    base = scene_from_dict(data)
     axial = {leg.elements[0].name: leg.elements[0].curve for leg in scene.legs}
     assert set(axial) == {"S"}
     unloading = [curve.unloading is not None for curve in axial.values()]
@@ -152,7 +145,7 @@ def test_variants_remove_their_events(variant):
 
 
 def test_bad_variant_is_rejected():
-    data = event_order.read_toml(ROOT / "studies" / "lander_slope.toml")
+    data = read_toml(ROOT / "studies" / "lander_slope.toml")
     with pytest.raises(ValueError, match="`variant`"):
         event_order._variant_data(data, "slippery")
     with pytest.raises(ValueError, match="`slip`"):

@@ -1,0 +1,84 @@
+"""Which events limit the order of the step on the 3-D lander? The event-order study.
+
+Question: the implicit contact step converges at second order on Figs. 3–4
+but at about first order on the lander of ``studies/lander_slope.toml``.
+That lander has three kinds of non-smooth event the dome scenes lack: the
+crushable absorber's force jumps to its unloading branch when the stroke
+rate changes sign, feet stick and slip on the slope, and single feet touch
+down and lift off at different instants. The study removes each kind in
+turn and fits the order of the error against Δt:
+
+* ``all events``: the lander as committed;
+* ``elastic``: the absorber without its unloading branch (the loading curve
+  in both directions: no branch jump);
+* ``stick``: μ = :data:`STICK_MU`, so large that hardly any foot slips (the
+  CSV gives the slipping share of the contact samples);
+* ``flat``: a level plane instead of the 10° slope, the feet 1 mm above it
+  (all four touch down together, no tipping onto a downhill pair);
+* ``none``: the three removed together;
+
+and runs a second scene with a hop, ``studies/lander_hop.toml``, whose
+final state at t = 0.6 s is compared with the reference. Every case runs
+with each slip rule of the implicit step (:data:`SLIP_RULES`: backward
+Euler, the default, and the second-order midpoint rule of
+``symcushion.contact_midpoint``), labelled "variant (midpoint)" for the
+second. The variants that keep the absorber's unloading branch (and
+``elastic``, as a check that the option then changes nothing) run once more
+with the midpoint rule and ``events = "branch"`` (``symcushion.branch_switch``:
+the kick weighted at the located loading/unloading switch), labelled
+"variant (midpoint, branch)"; :func:`reversals` counts each leg's stroke
+reversals in contact, the branch switches, at two Δt.
+
+Every run is the implicit contact step, compiled C, at Δt in :data:`DT_GRID`;
+the reference is the same scene at :data:`DT_REF`, checked against a run at
+:data:`DT_CHECK`. The metrics are those of ``studies/speed_vs_error.py``:
+the trajectory error, RMS distance of the centre of mass from the
+reference's over the run, relative to the reference's travel; the rebound
+error, |max ż − max ż_ref| (m/s); and the final-state error, the larger of
+|x(T) − x_ref(T)| over the reference's travel and |v(T) − v_ref(T)| over the
+impact speed |v(0)|.
+
+The control runs (``--controls``) remove every event at once: the lander on
+linear legs, at rest on its feet on level ground, kicked; they separate
+bouncing and rocking (no slip) from sliding, with each slip rule, from the
+start as built and from a settled start (:func:`settled`).
+
+Output: ``figures/event_order.csv`` (one row per scene, variant and Δt),
+``figures/event_order.png``, and the sections "Events: measured" and
+"Events: controls" of ``docs/speed-vs-error.md``. Run from the repository
+root: ``python studies/event_order.py`` (seventeen cases, 7 min on the
+shared 2-core machine with other jobs running, plus gcc the first time;
+builds are cached in ``build/event_order/``); ``--controls`` runs only the
+control runs (about 4 min), ``--cost`` only the interleaved timing of the
+located switch against its peers (:func:`cost_check`, section "Events:
+cost", about 1 min), ``--only TEXT`` only the cases whose scene or variant
+contains TEXT (no output written).
+"""
+from __future__ import annotations
+
+from .cases import (BRANCH_VARIANTS, BUILD, CHUNK, COLUMNS, DOC, DT_CHECK, DT_GRID, DT_REF,
+                    ERROR_KEYS, FIGURES, FLAT_GAP, REVERSAL_DTS, ROOT, SLIP_DT,
+                    SLIP_RULES, STICK_MU, STUDIES, VARIANTS, case_label, scenes)
+from .cases import _variant_data  # noqa: F401 - the tests build a variant's scene data with it
+from .controls import (CONTROLS, CONTROL_DTS, CONTROL_DT_REF, CONTROL_DURATION, CONTROL_STIFFNESS,
+                       COST_DT, COST_ROUNDS, SETTLE_DT, STARTS, SWITCH_DTS,
+                       SWITCH_KICK, SWITCH_REF, control_scene, controls,
+                       controls_text, cost_check, cost_text, final_state,
+                       settled, switch_case, switch_control)
+from .figure import LINES, PANELS, STYLE, plot
+from .main import main
+from .runs import (at_step, final_error, leg_reversals, orders, reversals, run_case, slip_fraction,
+                   write_csv)
+from .text import cost_ratios, report_text
+
+__all__ = [
+    "BRANCH_VARIANTS", "BUILD", "CHUNK", "COLUMNS", "CONTROLS", "CONTROL_DTS", "CONTROL_DT_REF",
+    "CONTROL_DURATION", "CONTROL_STIFFNESS", "COST_DT", "COST_ROUNDS", "DOC", "DT_CHECK",
+    "DT_GRID", "DT_REF", "ERROR_KEYS", "FIGURES", "FLAT_GAP", "LINES", "PANELS", "REVERSAL_DTS",
+    "ROOT", "SETTLE_DT", "SLIP_DT", "SLIP_RULES", "STARTS", "STICK_MU", "STUDIES", "STYLE",
+    "SWITCH_DTS", "SWITCH_KICK", "SWITCH_REF", "VARIANTS", "at_step", "case_label",
+    "control_scene", "controls", "controls_text", "cost_check", "cost_ratios", "cost_text",
+    "final_error", "final_state", "leg_reversals", "main", "orders", "plot", "report_text",
+    "reversals", "run_case", "scenes", "settled", "slip_fraction", "switch_case",
+    "switch_control", "write_csv",
+]

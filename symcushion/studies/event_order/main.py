@@ -1,0 +1,56 @@
+"""Command line of the event-order study: run the cases, write CSV, figure and docs.
+
+Owns the argument parsing and the order of the work; it must not measure
+anything itself.
+"""
+from __future__ import annotations
+
+import argparse
+import time
+
+from symcushion import report
+
+from .cases import DOC, FIGURES, scenes
+from .controls import controls, controls_text, cost_check, cost_text, switch_case
+from .figure import plot
+from .runs import orders, run_case, write_csv
+from .text import _fmt_order, report_text
+
+
+def main(argv=None):
+    from symcushion.studies import event_order  # the package: its docstring is the study's
+
+    parser = argparse.ArgumentParser(description=event_order.__doc__.split("\n")[0])
+    parser.add_argument("--only", default=None, help="run only the cases whose scene name or "
+                        "variant contains this text (no output is written)")
+    parser.add_argument("--controls", action="store_true",
+                        help="run only the control runs and write their section")
+    parser.add_argument("--cost", action="store_true",
+                        help="run only the interleaved timing of the located switch and write "
+                        "its section")
+    args = parser.parse_args(argv)
+    if args.cost:
+        report.write_section(DOC, "Events: cost", cost_text(cost_check()))
+        return
+    if args.controls:
+        report.write_section(DOC, "Events: controls", controls_text(controls()))
+        return
+    started = time.perf_counter()
+    rows = []
+    for name, variant, _, scene in scenes():
+        if args.only and args.only not in name and args.only not in variant:
+            continue
+        rows += run_case(name, variant, scene)
+    if not args.only or args.only in "switch control":
+        for events in ("none", "branch"):
+            rows += switch_case(events)
+    fits = orders(rows)
+    for f in fits:
+        print(f"{f['scene']:>12} {f['variant']:>10}: traj {_fmt_order(f['trajectory_error'])}, "
+              f"rebound {_fmt_order(f['rebound_error'])}, final {_fmt_order(f['final_error'])}")
+    if args.only:
+        return
+    write_csv(rows, FIGURES / "event_order.csv")
+    plot(rows, fits, FIGURES / "event_order.png")
+    report.write_section(DOC, "Events: measured",
+                         report_text(rows, fits, time.perf_counter() - started))
