@@ -75,11 +75,17 @@ def control_scene(mu, kick_v, kick_w, duration=CONTROL_DURATION, name="control")
     data["obstacle"][0]["angle"] = 0.0
     data["scene"]["mu"] = float(mu)
     scene = scene_from_dict(data, f"control:{name}").with_(duration=duration)
+    return scene, _kicked(scene, kick_v, kick_w)
+
+
+def _kicked(scene, kick_v, kick_w):
+    """The scene's state at rest on its feet with the velocity kick_v (m/s, world) and
+    angular velocity kick_w (rad/s, body axes) added."""
     x0 = equilibrium_state(scene)
     xl = state_layout(len(scene.legs))
     x0[xl.slice("velocity")] += np.asarray(kick_v, dtype=float)
     x0[xl.slice("angular_velocity")] += np.asarray(kick_w, dtype=float)
-    return scene, x0
+    return x0
 
 
 #: The clean branch switch (:func:`switch_control`): the hop scene's lander on
@@ -97,11 +103,7 @@ def switch_control(events="none", slip="midpoint"):
     data["obstacle"][0]["angle"] = 0.0
     data["scene"].update(mu=mu, slip=slip, events=events)
     scene = scene_from_dict(data, f"switch control:{events}").with_(duration=duration)
-    x0 = equilibrium_state(scene)
-    xl = state_layout(len(scene.legs))
-    x0[xl.slice("velocity")] += np.asarray(kick_v, dtype=float)
-    x0[xl.slice("angular_velocity")] += np.asarray(kick_w, dtype=float)
-    return scene, x0
+    return scene, _kicked(scene, kick_v, kick_w)
 
 
 #: Δt of the switch control's fit (s), and its reference and check (VM runs).
