@@ -17,6 +17,10 @@ COMMANDS = ("reproduce", "simulate", "plot", "codegen", "optimise", "envelope")
 
 #: Seconds a killed run may take to exit after SIGTERM.
 KILL_TIMEOUT = 60
+#: Simulated time of a run that is killed while it writes (s): 10⁶ steps of
+#: Fig. 3, many seconds of writing, so that SIGTERM arrives before the run
+#: ends (100 s, 10⁵ steps, sometimes finished between two polls).
+KILLED_DURATION = 1000.0
 
 
 def test_version(capsys):
@@ -155,13 +159,13 @@ def test_killed_run_leaves_the_previous_complete_file(tmp_path):
     assert cli.main(["simulate", str(FIG3), "--out", str(out), "--duration", "0.03",
                      "--no-plots"]) == 0
     before = {p.name: p.read_bytes() for p in (out / "fig3").iterdir()}
-    code, directory = _run_and_kill(out, 100.0)
+    code, directory = _run_and_kill(out, KILLED_DURATION)
     assert code == 128 + signal.SIGTERM, _run_and_kill.stderr
     assert {p.name: p.read_bytes() for p in directory.iterdir()} == before
 
 
 def test_killed_first_run_leaves_no_file(tmp_path):
-    code, directory = _run_and_kill(tmp_path / "out", 100.0)
+    code, directory = _run_and_kill(tmp_path / "out", KILLED_DURATION)
     assert code == 128 + signal.SIGTERM, _run_and_kill.stderr
     assert list(directory.iterdir()) == []
 
