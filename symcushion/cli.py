@@ -426,9 +426,30 @@ def _add_design_command(sub):
     p.set_defaults(func=_cmd_design)
 
 
+class Terminated(SystemExit):
+    """Raised by the SIGTERM handler; its code is 128 + the signal number."""
+
+
 def _terminate(signum, frame):
     """SIGTERM ends the run like Ctrl-C: temporary files are removed, results kept whole."""
-    raise SystemExit(128 + signum)
+    raise Terminated(128 + signum)
+
+
+def _termination_in(exc: BaseException) -> Terminated | None:
+    """The :class:`Terminated` behind ``exc``, if the signal caused it.
+
+    A signal handler runs wherever Python next checks for signals, which may
+    be inside a C extension calling back into Python (CasADi's ``DM.__array__``
+    under NumPy, for one); such callers wrap the exception in a
+    ``SystemError``. The chain of causes still holds the termination.
+    """
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, Terminated):
+            return exc
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return None
 
 
 def main(argv=None) -> int:
@@ -437,10 +458,24 @@ def main(argv=None) -> int:
     try:
         return args.func(args)
     except (ValueError, TypeError, FileNotFoundError) as exc:
+        if (term := _termination_in(exc)) is not None:
+            return _report_termination(args, term)
         print(f"symcushion {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except Exception as exc:
+        if (term := _termination_in(exc)) is None:
+            raise
+        return _report_termination(args, term)
+    except Terminated as term:
+        return _report_termination(args, term)
     finally:
         signal.signal(signal.SIGTERM, previous)
+
+
+def _report_termination(args, term: Terminated) -> int:
+    print(f"symcushion {args.command}: terminated (exit {term.code}); finished results "
+          "are kept, unfinished ones removed.", file=sys.stderr)
+    return term.code
 
 
 if __name__ == "__main__":  # pragma: no cover

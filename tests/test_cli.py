@@ -170,6 +170,32 @@ def test_killed_first_run_leaves_no_file(tmp_path):
     assert list(directory.iterdir()) == []
 
 
+def _wrapped_termination(args):
+    """A termination that surfaces, as from a C extension, as a SystemError."""
+    try:
+        raise cli.Terminated(128 + signal.SIGTERM)
+    except cli.Terminated as exc:
+        raise SystemError("returned a result with an exception set") from exc
+
+
+@pytest.mark.parametrize("raised", (_wrapped_termination,
+                                    lambda args: cli._terminate(signal.SIGTERM, None)))
+def test_termination_inside_a_c_extension_still_exits_with_the_signal_code(
+        tmp_path, monkeypatch, capsys, raised):
+    monkeypatch.setattr(cli, "_cmd_simulate", raised)
+    code = cli.main(["simulate", str(FIG3), "--out", str(tmp_path / "out"), "--no-plots"])
+    assert code == 128 + signal.SIGTERM
+    assert "terminated" in capsys.readouterr().err
+
+
+def test_other_errors_from_c_extensions_are_not_taken_for_termination(tmp_path, monkeypatch):
+    def broken(args):
+        raise SystemError("a real bug")
+    monkeypatch.setattr(cli, "_cmd_simulate", broken)
+    with pytest.raises(SystemError, match="a real bug"):
+        cli.main(["simulate", str(FIG3), "--out", str(tmp_path / "out"), "--no-plots"])
+
+
 @pytest.mark.parametrize("command", (["optimise", str(ROOT / "studies" / "absorber_1d.toml")],
                                      ["envelope", str(ROOT / "studies" / "envelope_lander.toml")],
                                      ["design", str(ROOT / "studies" / "design_for_envelope.toml")]))
