@@ -1,0 +1,71 @@
+"""The planar lock control (studies/lock_control.py): a stroke lock as a constraint.
+
+The control is a model of its own (a planar body on two legs with stuck
+feet), independent of the package, with an event-driven Filippov reference.
+These tests pin its findings (docs/speed-vs-error.md, "A planar control of
+the lock"): the chord branch rule converges at first order where a stroke
+locks, the RATTLE lock with the holding-force test at second order and with
+the reference's lock episodes.
+"""
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+PATH = Path(__file__).resolve().parent.parent / "studies" / "lock_control.py"
+
+
+@pytest.fixture(scope="module")
+def lock():
+    spec = importlib.util.spec_from_file_location("lock_control", PATH)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="module")
+def lock_only(lock):
+    """Reference of the lock-only start, and each stepper's error at T over the Δt grid."""
+    v0 = np.array(lock.SCENARIOS["lock-only"])
+    segs, log, y_end = lock.reference(v0)
+    runs = {name: [lock.stepper(h, how, v0) for h in lock.STEPS]
+            for name, how in (("chord", None), ("hold", "hold"))}
+    errors = {name: [max(q / lock.Q_SCALE, v / lock.V_SCALE)
+                     for q, v in (lock.err(traj[-1], y_end) for traj, *_ in rs)]
+              for name, rs in runs.items()}
+    return dict(v0=v0, log=log, y_end=y_end, runs=runs, errors=errors)
+
+
+def test_the_model_derivatives_agree_with_differences(lock):
+    lock.check_gradients()
+
+
+def test_the_reference_is_converged(lock, lock_only):
+    finer = lock.reference(lock_only["v0"], 1e-13)[2]
+    q, v = lock.err(finer, lock_only["y_end"])
+    smallest = min(min(e) for e in lock_only["errors"].values())
+    assert max(q / lock.Q_SCALE, v / lock.V_SCALE) < 1e-3 * smallest
+
+
+def test_the_reference_locks_and_releases(lock, lock_only):
+    kinds = [(old[i], new[i]) for _, old, new, _, _ in lock_only["log"] for i in range(2)
+             if old[i] != new[i]]
+    assert (lock.LOAD, lock.LOCK) in kinds and (lock.LOCK, lock.UNLOAD) in kinds
+    # no direct switch between the curves: every change goes through a lock
+    assert all(lock.LOCK in pair for pair in kinds)
+
+
+def test_the_chord_rule_chatters_and_is_first_order(lock, lock_only):
+    assert lock.slope(lock_only["errors"]["chord"]) < 1.2
+    reversals = [sum(rev) for _, _, rev, _ in lock_only["runs"]["chord"]]
+    assert reversals[-1] > 4 * reversals[1]      # grows like 1/Δt: a sliding mode
+
+
+def test_the_rattle_lock_is_second_order_with_the_reference_locks(lock, lock_only):
+    assert lock.slope(lock_only["errors"]["hold"]) >= 1.8
+    n_locks = sum(1 for _, old, new, _, _ in lock_only["log"] for i in range(2)
+                  if old[i] != lock.LOCK and new[i] == lock.LOCK)
+    assert [locks for *_, locks in lock_only["runs"]["hold"]] == [n_locks] * len(lock.STEPS)
