@@ -7,8 +7,10 @@ Question
     anywhere in [S_u, S_l]) until that force reaches a curve. Velocity Verlet
     taking the branch from the sign of the stroke change over the step cannot
     lock; it alternates branches (a sliding mode), an O(h) velocity error.
-    Does a RATTLE-type step for locked legs restore second order? A planar
-    model, independent of the package, against an event-driven reference.
+    Does a RATTLE-type step for locked legs restore second order, and what
+    else does it need (a reversal that does not lock: a direct switch)? A
+    planar model, independent of the package, against an event-driven
+    reference.
 
 Model
     Body in the x-z plane (m = 150 kg, J = 20 kg m^2, q = (x, z, theta)) on two
@@ -43,6 +45,13 @@ Methods
     joint solve, release the other leg; rattle_hold keeps impulse and force
     apart. Neither treats a direct switch (a reversal with the holding force
     off the curves): a force jump by the gap at an unlocated instant, O(h).
+    verlet_switch, rattle_hold_switch: the chord and hold steppers with the
+    direct switch located. A leg that reverses without locking changed its
+    node force's branch between t_n and t_{n+1}, so the kicks switch at
+    t_n + h/2; the stroke rate's zero t* = t_n + theta h is interpolated
+    through the rate at t_n and the chord's, (c_{n+1} - c_n)/h, at mid-step
+    (both follow the old branch: the drift used F_n only), and the missing
+    impulse -(t* - t_n - h/2) G^T (S_old - S_new) is added to v_{n+1}.
     Scenarios: "direct-switch", (vx, vz, omega)(0) = (0.3, -2, 0.5), has
     direct switches; "lock-only", (0.3, -1, 0), the nearest start in a small scan
     whose reference only crushes, locks and releases; three more lock-only
@@ -86,7 +95,10 @@ ARM = 0.5                                         # m: theta errors counted as A
 Q_SCALE, V_SCALE = 0.1, 1.0                       # m, m/s: scales of the combined error
 LOAD, UNLOAD, LOCK = 0, 1, 2
 NAMES = ("loading", "unloading", "locked")
-STEPPERS = (("verlet_chord", None), ("rattle_mu", "mu"), ("rattle_hold", "hold"))
+#: (name, lock rule, located direct switch)
+STEPPERS = (("verlet_chord", None, False), ("verlet_switch", None, True),
+            ("rattle_mu", "mu", False), ("rattle_hold", "hold", False),
+            ("rattle_hold_switch", "hold", True))
 FIG = Path(__file__).resolve().parent.parent / "figures" / "lock_control.png"
 
 
@@ -265,8 +277,9 @@ def ref_at(segs, t):
 
 
 # --------------------------------------------------------------------------- steppers
-def stepper(h, lock, v0):
-    """Velocity Verlet, chord branch rule; lock "mu" or "hold" adds the RATTLE lock."""
+def stepper(h, lock, v0, switch=False):
+    """Velocity Verlet, chord branch rule; lock "mu" or "hold" adds the RATTLE lock,
+    ``switch`` the located direct switch."""
     n = round(T / h)
     q, v = Q0.copy(), np.array(v0, float)
     c, G, Q, _ = kin(q)
@@ -278,6 +291,7 @@ def stepper(h, lock, v0):
     rev, locks = [0, 0], 0
     for k in range(n):
         lk = [i for i in range(2) if locked[i]]
+        rate0 = G @ v                                               # c' at the start
         # first kick and drift: v½ = v + h/2 M^-1 F_n, q1 = q + h v½
         vh = v + 0.5 * h * MINV * (Q - G.T @ ax)
         q1 = q + h * vh
@@ -344,6 +358,23 @@ def stepper(h, lock, v0):
                 if s_unload(c1[i]) <= lam[i] <= s_load(c1[i]):
                     locked, new, v, ax1 = trial, br_t, vp, lam
                     locks += 1
+        if switch:
+            # Located direct switch: node n+1 took the new branch, so the two kicks
+            # switch at t_n + h/2; the stroke rate's zero t* = t_n + theta h lies in
+            # (t_n - h/2, t_n + h/2) (the chord rule's branch is the rate's sign at
+            # mid-step). theta: the rate interpolated through its value at t_n and
+            # the chord's, (c_{n+1} - c_n)/h, at t_n + h/2; both follow the old
+            # branch (the drift used F_n only), the end rate would not. The missing
+            # impulse -(t* - t_n - h/2) G^T (S_old - S_new) is added to v_{n+1}:
+            # O(h) in theta, O(h^2) in the impulse, once.
+            for i in rev_legs:
+                if locked[i]:
+                    continue
+                r0, r_mid = rate0[i], (c1[i] - c[i]) / h
+                theta = 0.5 * r0 / (r0 - r_mid) if r0 != r_mid else 0.5
+                theta = min(max(theta, -0.5), 0.5)
+                jump = curve(c1[i], br[i]) - curve(c1[i], new[i])   # S_old - S_new
+                v = v - h * (theta - 0.5) * MINV * G1[i] * jump
         q, c, G, Q, ax, br = q1, c1, G1, Q1, ax1, new
         traj[k + 1], axial[k + 1] = np.concatenate([q, v]), ax[0]
     return traj, axial, rev, locks
@@ -361,10 +392,10 @@ def run(v0, grid):
     eq, ev = err(yT, reference(v0, 1e-13)[2])
     yref = np.array([ref_at(segs, t)[0] for t in grid])
     res = {}
-    for name, lock in STEPPERS:
+    for name, lock, switch in STEPPERS:
         for h in STEPS:
             t1 = time.perf_counter()
-            traj, axial, rev, locks = stepper(h, lock, v0)
+            traj, axial, rev, locks = stepper(h, lock, v0, switch)
             wall = (time.perf_counter() - t1) / T
             pq, pv = err(traj[-1], yT)
             gq, gv = err(traj[::round(SAMPLE / h)], yref)
@@ -405,7 +436,7 @@ def main():
         print("| stepper | Δt (s) | pos. error at T (m) | vel. error at T (m/s) | rel. error at T "
               "| RMS rel. error | reversals leg 1 / 2 | lock episodes | wall s per sim. s |")
         print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
-        for name, lock in STEPPERS:
+        for name, lock, _ in STEPPERS:
             for h in STEPS:
                 r = res[name, h]
                 print(f"| {name} | {h:.3g} | {r['pos']:.2e} | {r['vel']:.2e} | {r['rel']:.2e} "
@@ -414,7 +445,7 @@ def main():
         print("\nFitted orders (least squares over all Δt):\n")
         print("| stepper | position at T | velocity at T | rel. at T | RMS rel. |")
         print("|---|---:|---:|---:|---:|")
-        for name, _ in STEPPERS:
+        for name, *_ in STEPPERS:
             print(f"| {name} | " + " | ".join(f"{slope([res[name, h][k] for h in STEPS]):.2f}"
                                              for k in ("pos", "vel", "rel", "rms")) + " |")
         direct = [t for t, o, n, _, _ in log for i in range(2)
@@ -424,18 +455,18 @@ def main():
             print(f"\nFirst direct switch at {1e3 * direct[0]:.1f} ms. Rel. error on the grid at "
                   f"{1e3 * grid[k0]:.0f} ms / {1e3 * grid[k1]:.0f} ms, Δt = "
                   + ", ".join(f"{1e3 * h:g}" for h in STEPS) + " ms, and fitted orders:\n")
-            for name, _ in STEPPERS:
+            for name, *_ in STEPPERS:
                 e = [[res[name, h]["grid"][k] for h in STEPS] for k in (k0, k1)]
                 print(f"- {name}: " + " / ".join(
                     " ".join(f"{x:.1e}" for x in ek) + f" (order {slope(ek):.2f})" for ek in e))
     print("\n## Other lock-only starts: fitted orders, rel. error at T / RMS rel.\n")
-    print("| (vx, vz, omega)(0) | " + " | ".join(n for n, _ in STEPPERS) + " |")
+    print("| (vx, vz, omega)(0) | " + " | ".join(n for n, *_ in STEPPERS) + " |")
     print("|---|" + "---:|" * len(STEPPERS))
     for v0 in CHECKS:
         res = run(np.array(v0), grid)[3]
         print(f"| {v0} | " + " | ".join(" / ".join(
             f"{slope([res[n, h][k] for h in STEPS]):.2f}" for k in ("rel", "rms"))
-            for n, _ in STEPPERS) + " |")
+            for n, *_ in STEPPERS) + " |")
     plot(out)
     print(f"\nTotal wall time {time.perf_counter() - t0:.0f} s.")
 
@@ -444,7 +475,7 @@ def plot(out):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    fig, (a, b) = plt.subplots(1, 2, figsize=(13, 5))
+    fig, (a, b, b2) = plt.subplots(1, 3, figsize=(18, 5.2))
     segs, res = out["lock-only"]
     tt = np.linspace(0.0, T, 3001)
     ref = [ref_at(segs, t) for t in tt]
@@ -459,23 +490,28 @@ def plot(out):
     for name, col, ls in (("rattle_mu", "tab:orange", "--"), ("rattle_hold", "tab:blue", "-")):
         a.plot(th, res[name, h]["axial"], color=col, lw=1.0, ls=ls, label=f"{name}, Δt = 1 ms")
     a.set(xlabel="time (s)", ylabel="axial force of leg 1 (N)", ylim=(0, 3300),
-          title="(a) leg 1, lock-only scenario")
+          title="(a) leg 1, lock-only start")
     a.legend(fontsize=8, loc="upper right")
     hs = np.array(STEPS)
-    for name, col in (("verlet_chord", "tab:red"), ("rattle_mu", "tab:orange"),
-                      ("rattle_hold", "tab:blue")):
-        for scen, st in (("lock-only", "o-"), ("direct-switch", "^:")):
-            b.loglog(hs, [out[scen][1][name, h]["rel"] for h in hs], st, color=col,
-                     label=f"{name}, {scen}")
-    e0 = out["lock-only"][1]["verlet_chord", hs[0]]["rel"]
-    for p, f, ls in ((1, 1.0, "--"), (2, 0.1, "-.")):
-        b.loglog(hs, f * e0 * (hs / hs[0]) ** p, color="0.5", lw=0.8, ls=ls, label=f"slope {p}")
-    b.set(ylabel=f"error at T = {T} s: max(|Δq|/{Q_SCALE} m, |Δv|/{V_SCALE} m/s)",
-          title="(b) error at T vs step", xlabel="Δt (ms)")
-    b.set_xticks(hs, [f"{1e3 * h:g}" for h in hs])
-    b.minorticks_off()
-    b.legend(fontsize=8, ncol=2)
-    b.grid(True, which="both", alpha=0.3)
+    style = {"verlet_chord": ("tab:red", "o-"), "verlet_switch": ("tab:purple", "v--"),
+             "rattle_mu": ("tab:orange", "s:"), "rattle_hold": ("tab:blue", "o-"),
+             "rattle_hold_switch": ("tab:green", "^-")}
+    for ax_, scen, tag in ((b, "lock-only", "(b)"), (b2, "direct-switch", "(c)")):
+        for name, *_ in STEPPERS:
+            col, st = style[name]
+            ring = dict(ms=10, mfc="none") if name == "rattle_hold" else {}   # visible under
+            ax_.loglog(hs, [out[scen][1][name, h]["rel"] for h in hs], st, color=col,
+                       label=name, **ring)                                  # its twin
+        e0 = out[scen][1]["verlet_chord", hs[0]]["rel"]
+        for p, f, ls in ((1, 1.0, "--"), (2, 0.1, "-.")):
+            ax_.loglog(hs, f * e0 * (hs / hs[0]) ** p, color="0.5", lw=0.8, ls=ls,
+                       label=f"slope {p}")
+        ax_.set(ylabel=f"error at T = {T} s: max(|Δq|/{Q_SCALE} m, |Δv|/{V_SCALE} m/s)",
+                title=f"{tag} error at T vs step, {scen} start", xlabel="Δt (ms)")
+        ax_.set_xticks(hs, [f"{1e3 * h:g}" for h in hs])
+        ax_.minorticks_off()
+        ax_.legend(fontsize=8, ncol=2, loc="lower right")
+        ax_.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
     fd, tmp = tempfile.mkstemp(suffix=".png", dir=FIG.parent)   # write atomically
     os.close(fd)

@@ -5,7 +5,8 @@ feet), independent of the package, with an event-driven Filippov reference.
 These tests pin its findings (docs/speed-vs-error.md, "A planar control of
 the lock"): the chord branch rule converges at first order where a stroke
 locks, the RATTLE lock with the holding-force test at second order and with
-the reference's lock episodes.
+the reference's lock episodes; where a stroke also reverses without locking
+(a direct switch) only the lock and the located switch together do.
 """
 from __future__ import annotations
 
@@ -69,3 +70,21 @@ def test_the_rattle_lock_is_second_order_with_the_reference_locks(lock, lock_onl
     n_locks = sum(1 for _, old, new, _, _ in lock_only["log"] for i in range(2)
                   if old[i] != lock.LOCK and new[i] == lock.LOCK)
     assert [locks for *_, locks in lock_only["runs"]["hold"]] == [n_locks] * len(lock.STEPS)
+
+
+def test_direct_switches_need_the_lock_and_the_located_switch_together(lock):
+    v0 = np.array(lock.SCENARIOS["direct-switch"])
+    segs, log, y_end = lock.reference(v0)
+    direct = [(old[i], new[i]) for _, old, new, _, _ in log for i in range(2)
+              if old[i] != new[i] and lock.LOCK not in (old[i], new[i])]
+    assert len(direct) >= 2
+    orders = {}
+    for name, how, switch in (("lock", "hold", False), ("switch", None, True),
+                              ("both", "hold", True)):
+        errors = []
+        for h in lock.STEPS:
+            q, v = lock.err(lock.stepper(h, how, v0, switch)[0][-1], y_end)
+            errors.append(max(q / lock.Q_SCALE, v / lock.V_SCALE))
+        orders[name] = lock.slope(errors)
+    assert orders["lock"] < 1.3 and orders["switch"] < 1.3
+    assert orders["both"] >= 1.8
