@@ -386,10 +386,13 @@ def err(ya, yb):
     return np.linalg.norm(d[..., :3], axis=-1), np.linalg.norm(d[..., 3:], axis=-1)
 
 
-def run(v0, grid):
-    """Reference and all steppers from initial velocity v0: events, results."""
+def run(v0, grid, self_check=True):
+    """Reference and all steppers from initial velocity v0: events, results.
+
+    ``self_check`` also solves the reference at 1e-13 for the printed
+    self-check; the extra starts, whose orders alone are printed, skip it."""
     segs, log, yT = reference(v0)
-    eq, ev = err(yT, reference(v0, 1e-13)[2])
+    eq, ev = err(yT, reference(v0, 1e-13)[2]) if self_check else (np.nan, np.nan)
     yref = np.array([ref_at(segs, t)[0] for t in grid])
     res = {}
     for name, lock, switch in STEPPERS:
@@ -463,7 +466,7 @@ def main():
     print("| (vx, vz, omega)(0) | " + " | ".join(n for n, *_ in STEPPERS) + " |")
     print("|---|" + "---:|" * len(STEPPERS))
     for v0 in CHECKS:
-        res = run(np.array(v0), grid)[3]
+        res = run(np.array(v0), grid, self_check=False)[3]
         print(f"| {v0} | " + " | ".join(" / ".join(
             f"{slope([res[n, h][k] for h in STEPS]):.2f}" for k in ("rel", "rms"))
             for n, *_ in STEPPERS) + " |")
