@@ -42,8 +42,9 @@ from __future__ import annotations
 import casadi as ca
 
 from .contact_guards import at_least, at_most
+from .stroke_lock import axial_branches
 
-__all__ = ["locates_switch", "branch_switch_kick"]
+__all__ = ["locates_switch", "branch_flip", "branch_switch_kick"]
 
 #: Smallest |2(s₀ − s_½)| (m/s) that θ divides by: a stroke rate that does
 #: not change over the step has no zero in it, and the quotient is clipped
@@ -63,6 +64,26 @@ def _axial_loading(delta_S, rate):
     return ca.if_else(delta_S * rate >= 0, 1.0, 0.0)
 
 
+def branch_flip(strut_fns, p_leg, rho0, F0, l, h, stored_loading=None):
+    """1 where this step's end force is on the other axial branch than the stored force.
+
+    The end force's branch is the touchdown step's own test on the chord
+    l/h; the stored force's is ``stored_loading`` where the state keeps it
+    (``events = "lock"``), else the curve whose axial force at ``rho0`` is
+    nearer to F0·e_S. Returns the flag and ``axial_branches`` at ``rho0``,
+    with ``stored_loading`` and ``new_loading`` (1 on the loading curve).
+    """
+    ax = axial_branches(strut_fns, p_leg, rho0)
+    e_S = ax["e_S"]
+    new_loading = _axial_loading(ax["delta_S"], ca.dot(e_S, l / h))
+    if stored_loading is None:
+        S0 = ca.dot(F0, e_S)
+        stored_loading = ca.if_else(ca.fabs(S0 - ax["S_load"]) <= ca.fabs(S0 - ax["S_unload"]),
+                                    1.0, 0.0)
+    return (new_loading != stored_loading,
+            dict(ax, stored_loading=stored_loading, new_loading=new_loading))
+
+
 def branch_switch_kick(strut_fns, p_leg, foot, step):
     """Correction (B1) of one leg's kick for a branch switch inside the step.
 
@@ -77,7 +98,9 @@ def branch_switch_kick(strut_fns, p_leg, foot, step):
         ``rho0`` (3, m, body frame, start of the step), ``F0`` (3, N, body
         frame, the stored force of the first half kick), ``rho1`` and ``F1``
         (the same at the end), ``active`` (1 where the foot was in contact at
-        the start and stays in contact at the end).
+        the start and stays in contact at the end), optionally
+        ``stored_loading`` (1 where the stored force is on the loading curve,
+        when the state keeps the branch; else it is read from the force).
     step : dict
         ``h`` (s), ``R`` and ``R1`` (3×3, attitude at start and end), ``v``
         (3, m/s, world) and ``omega`` (3, rad/s, body) at the start, ``l``
@@ -97,17 +120,9 @@ def branch_switch_kick(strut_fns, p_leg, foot, step):
     """
     rho0, F0 = foot["rho0"], foot["F0"]
     h, l = step["h"], step["l"]
-    geo0 = strut_fns["strut_geometry"].call(dict(r=rho0))
-    e_S, delta_S = geo0["e_S"], geo0["delta_S"]
-    # branch of this step's end force: the touchdown step's own test on l/h
-    new_loading = _axial_loading(delta_S, ca.dot(e_S, l / h))
-    # branch of the stored force: the axial force nearer to it at the foot
-    direction = ca.if_else(delta_S >= 0, 1.0, -1.0) * e_S
-    S_load = ca.dot(strut_fns["strut_force"](rho0, direction, p_leg), e_S)
-    S_unload = ca.dot(strut_fns["strut_force"](rho0, -direction, p_leg), e_S)
-    S0 = ca.dot(F0, e_S)
-    old_loading = ca.if_else(ca.fabs(S0 - S_load) <= ca.fabs(S0 - S_unload), 1.0, 0.0)
-    switched = ca.logic_and(foot["active"], new_loading != old_loading)
+    flip, ax = branch_flip(strut_fns, p_leg, rho0, F0, l, h, foot.get("stored_loading"))
+    e_S = ax["e_S"]
+    switched = ca.logic_and(foot["active"], flip)
     # the zero of s(t) through s₀ (exact) and s_½ (chord at the middle foot point)
     s0 = ca.dot(e_S, -ca.cross(step["omega"], rho0) - step["R"].T @ step["v"])
     e_mid = strut_fns["strut_geometry"].call(dict(r=rho0 + l / 2))["e_S"]

@@ -96,7 +96,9 @@ BODY_STATE_FIELDS = (
 #: Leg block of the state: 7 entries per leg.
 LEG_STATE_FIELDS = (
     Field("foot", "m", "foot position, world frame (the stored contact point)", _XYZ),
-    Field("contact", "1", "1 while the foot is in contact, else 0"),
+    Field("contact", "1", "1 while the foot is in contact, else 0; with events = 'lock', "
+          "2 for a foot whose stroke is locked and 3 for one on the unloading curve "
+          "(in contact: contact > 0.5)"),
     Field("force_body", "N", "force on the foot from the obstacle, body axes "
           "(the force of the last step, used by the next half kick)", _XYZ),
 )

@@ -52,8 +52,10 @@ SLIP_RULES = ("backward", "midpoint")
 #: What the touchdown step does at the events inside a step
 #: (``symcushion.branch_switch``): ``"none"``, the velocity-Verlet kick;
 #: ``"branch"``, the kick weighted at the located switch of each leg's axial
-#: loading/unloading branch (second order through the force jump).
-EVENT_RULES = ("none", "branch")
+#: loading/unloading branch (second order through the force jump);
+#: ``"lock"``, that and the stroke lock of ``symcushion.stroke_lock``: a leg
+#: whose foot sticks holds its stroke between the curves (SHAKE/RATTLE).
+EVENT_RULES = ("none", "branch", "lock")
 
 
 def _vec(name, value, size=3):
@@ -140,9 +142,9 @@ class Scene:
     slip : {'backward', 'midpoint'}
         The slip rule of the implicit contact step (:data:`SLIP_RULES`);
         ``'midpoint'`` needs ``method='implicit'``.
-    events : {'none', 'branch'}
+    events : {'none', 'branch', 'lock'}
         What the body step does at the absorbers' branch switches inside a
-        step (:data:`EVENT_RULES`).
+        step (:data:`EVENT_RULES`); ``'lock'`` needs ``mu > 0``.
     """
 
     body: Body
@@ -172,6 +174,9 @@ class Scene:
         self.tangent_plane = choice("tangent_plane", self.tangent_plane, TANGENT_PLANES)
         self.slip = choice("slip", self.slip, SLIP_RULES)
         self.events = choice("events", self.events, EVENT_RULES)
+        if self.events == "lock" and self.mu == 0:
+            raise ValueError("`events` = 'lock' holds the stroke of a leg whose foot sticks, and "
+                             "with mu = 0 no foot sticks. Set mu > 0 or events = 'branch'.")
         if self.slip != "backward" and self.method != "implicit":
             raise ValueError(f"`slip` = {self.slip!r} corrects the implicit contact step's slip; "
                              f"`method` is {self.method!r}. Set method = 'implicit' or "

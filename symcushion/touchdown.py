@@ -30,6 +30,17 @@ Scheme (one step of length h, §3 of the paper with a velocity-Verlet body):
    legs whose axial force changed between its loading and unloading
    branches inside the step.
 
+With ``events = "lock"`` a stuck leg whose load lies between its curves
+holds its stroke (``symcushion.stroke_lock``): the first kick carries
+Λ e_S on the locked legs with the stroke at the end of the drift equal to
+the stroke at the start (SHAKE), the second μ e_S with the stroke rate at
+the end zero (RATTLE); the locked foot stays at its world point. A leg in
+contact whose chord turns is tested for the lock by the force that holds
+its stroke after the velocities are projected onto the held strokes; the
+ones that do not lock keep the located switch (B1). The state's
+``contact`` entry marks a locked foot (2) and a foot on the unloading
+curve (3).
+
 Order: velocity Verlet is second order and symplectic for smooth forces; the
 contact law is non-smooth, so the measured order is stated by the tests
 (``tests/test_simulate.py``) rather than assumed. The first-contact instant
@@ -55,13 +66,16 @@ import numpy as np
 
 from .contact import contact_step_call
 from .contact_guards import at_least, at_most
-from .branch_switch import branch_switch_kick, locates_switch
+from .branch_switch import branch_flip, branch_switch_kick, locates_switch
 from .contact_midpoint import midpoint_slip_call
 from .layout import (BODY_OUT, BODY_STATE, LEG_OUT, LEG_STATE, MODES, ParamLayout, default_p,
                      output_layout, param_layout, quat_exp, quat_mul, quat_to_rot,
                      quat_to_rot_np, state_layout)
 from .obstacles import closest_obstacle
 from .scene import Scene
+from .stroke_lock import (LOCKED, UNLOADING, axial_branches, bending_force, inside_cone,
+                          newton_masked,
+                          solve_masked, stroke_acceleration, stroke_rate)
 
 __all__ = ["StepModel", "build_model", "initial_state", "equilibrium_state", "stable_dt",
            "MODES", "STEP_CRITERION_EPS", "STABILITY_SAFETY", "MAX_HALVINGS",
@@ -202,31 +216,51 @@ def build_model(scene: Scene) -> StepModel:
         in_contact = foot["contact"] > 0.5
         return ca.if_else(in_contact, R_.T @ (foot["foot"] - pos_), rest[j])
 
-    # 1. half kick with the stored forces
+    # 1. half kick with the stored forces (+ Λ e_S on locked legs, SHAKE)
     force = ca.DM.zeros(3)
     torque = ca.DM.zeros(3)
+    rho0 = []
     for j, foot in enumerate(feet):
         rho = body_frame_foot(j, foot, R, pos)
+        rho0.append(rho)
         force = force + foot["force_body"]
         torque = torque + ca.cross(rho, foot["force_body"])
-    acc = g + R @ force / m
-    vel_h = vel + h / 2 * acc
-    omega_h = omega + h / 2 * (inertia_inv @ (torque - ca.cross(omega, inertia @ omega)))
+    lockable = [j for j, leg in enumerate(legs)
+                if scene.events == "lock" and locates_switch(leg)]
+    fns_of = [leg.functions() for leg in legs]
+    p_of = [p[o[0]:o[1]] for o in offsets]
+    locked0 = {j: ca.fabs(feet[j]["contact"] - LOCKED) < 0.5 for j in lockable}
+    ax0 = {j: axial_branches(fns_of[j], p_of[j], rho0[j]) for j in lockable}
+    Lam = ca.SX.sym("Lam", len(lockable))
+    for k, j in enumerate(lockable):
+        force = force + Lam[k] * ax0[j]["e_S"]
+        torque = torque + Lam[k] * ca.cross(rho0[j], ax0[j]["e_S"])
 
-    # 2. drift
-    pos1 = pos + h * vel_h
-    quat1 = quat_mul(quat, quat_exp(h * omega_h))
-    quat1 = quat1 / ca.norm_2(quat1)
+    def kick_drift(force, torque):
+        vel_h = vel + h / 2 * (g + R @ force / m)
+        omega_h = omega + h / 2 * (inertia_inv @ (torque - ca.cross(omega, inertia @ omega)))
+        pos1 = pos + h * vel_h                                      # 2. drift
+        quat1 = quat_mul(quat, quat_exp(h * omega_h))
+        return vel_h, omega_h, pos1, quat1 / ca.norm_2(quat1)
+
+    vel_h, omega_h, pos1, quat1 = kick_drift(force, torque)
+    if lockable:
+        # SHAKE: a locked leg's stroke at the end of the drift equals its stroke at the start
+        R1_L = quat_to_rot(quat1)
+        held = [ca.if_else(locked0[j], fns_of[j]["strut_geometry"].call(
+                    dict(r=R1_L.T @ (feet[j]["foot"] - pos1)))["delta_S"] - ax0[j]["delta_S"],
+                           Lam[k]) for k, j in enumerate(lockable)]
+        Lam_value = newton_masked(ca.vertcat(*held), Lam, [locked0[j] for j in lockable])
+        vel_h, omega_h, pos1, quat1 = ca.substitute([vel_h, omega_h, pos1, quat1], [Lam],
+                                                    [Lam_value])
     R1 = quat_to_rot(quat1)
 
     # 3. feet
-    new_feet, outputs = [], []
-    force1 = ca.DM.zeros(3)
-    torque1 = ca.DM.zeros(3)
-    switch_force, switch_torque = ca.DM.zeros(3), ca.DM.zeros(3)   # (B1), events = "branch"
-    for j, (leg, foot) in enumerate(zip(legs, feet)):
-        fns = leg.functions()
-        p_leg = p[offsets[j][0]:offsets[j][1]]
+    def foot_contact(j, release=None):
+        """The contact step of foot j. ``release`` = (flag, e_S, rate): where the flag
+        is set, the axial component of the chord's rate l/h (which picks the
+        branch) is replaced by ``rate``."""
+        leg, foot, fns, p_leg = legs[j], feet[j], fns_of[j], p_of[j]
         in_contact = foot["contact"] > 0.5
         # free foot: where does its unloaded position cross the surface?
         free0 = pos + R @ rest[j]
@@ -241,12 +275,15 @@ def build_model(scene: Scene) -> StepModel:
         active = ca.logic_or(in_contact, touches)
 
         r_s = ca.if_else(in_contact, foot["foot"], touch)        # world point of the plane
-        rho_s = body_frame_foot(j, foot, R, pos)               # foot, body frame
+        rho_s = rho0[j]                                          # foot, body frame
         _, normal_w, _ = closest_obstacle(scene.obstacles, r_s)
         l = R1.T @ (r_s - pos1) - rho_s                        # §3: l_j, exact kinematics
         n_b = R1.T @ normal_w
         u0 = rho_s - rest[j]
         v_rel = l / h                                          # selects loading branches
+        if release is not None:
+            flag, e_S, rate = release
+            v_rel = ca.if_else(flag, v_rel + (rate - ca.dot(e_S, v_rel)) * e_S, v_rel)
         P0 = fns["strut_force"](rho_s, v_rel, p_leg)
         Dp = fns["strut_stiffness"](rho_s, v_rel, p_leg)
         out = contact_step_call(scene.method, P0, Dp, n_b, l, mu, u0,
@@ -270,31 +307,203 @@ def build_model(scene: Scene) -> StepModel:
         foot_w = ca.if_else(stays, foot_proj, foot_w)
         rho1 = ca.if_else(stays, R1.T @ (foot_w - pos1), rho1)
         P1 = ca.if_else(stays, out["P"], ca.DM.zeros(3))
-        new_feet.append(dict(foot=foot_w, contact=ca.if_else(stays, 1.0, 0.0), force_body=P1))
-        force1 = force1 + P1
-        torque1 = torque1 + ca.cross(rho1, P1)
-        if scene.events == "branch" and locates_switch(leg):
+        return dict(in_contact=in_contact, active=active, stays=stays, rho_s=rho_s, r_s=r_s,
+                    l=l, n_b=n_b, v_rel=v_rel, normal_w=normal_w, out=out, rho1=rho1,
+                    foot_w=foot_w, P1=P1, locked=ca.SX(0))
+
+    res, release_loading = [], {}
+    stored_loading = {j: feet[j]["contact"] < 2.5 for j in lockable}
+    for j in range(n_legs):
+        if j in locked0:
+            # a locked leg that is released takes the curve nearer to its holding force
+            a = ax0[j]
+            S0 = ca.dot(feet[j]["force_body"], a["e_S"])
+            to_load = ca.fabs(S0 - a["S_load"]) <= ca.fabs(S0 - a["S_unload"])
+            release_loading[j] = to_load
+            # a foot that touches down loads: at the unloaded pose δ_S is 0 to round-off,
+            # and the chord's test δ_S·δ_S′ ≥ 0 would pick the branch by the sign of that
+            touching_down = feet[j]["contact"] < 0.5
+            rate = ca.if_else(ca.logic_or(to_load, touching_down), 1.0, -1.0) * ca.dot(
+                a["loading"], a["e_S"])
+            res.append(foot_contact(j, (ca.logic_or(locked0[j], touching_down), a["e_S"], rate)))
+        else:
+            res.append(foot_contact(j))
+
+    # where each lockable leg would hold: its foot stuck at its stored world point
+    hold = {}
+    for j in lockable:
+        rho = R1.T @ (feet[j]["foot"] - pos1)
+        a = axial_branches(fns_of[j], p_of[j], rho)
+        hold[j] = dict(rho=rho, e_S=a["e_S"], L=a["L"], lo=a["lo"], hi=a["hi"],
+                       S_load=a["S_load"], S_unload=a["S_unload"],
+                       foot_w=feet[j]["foot"],
+                       bend=bending_force(fns_of[j], p_of[j], rho, res[j]["v_rel"], a["e_S"]))
+
+    def second_kick(mask, S):
+        """v, ω at the end with the legs of ``mask`` held by the axial forces ``S``."""
+        force1, torque1 = ca.DM.zeros(3), ca.DM.zeros(3)
+        for j in range(n_legs):
+            P1, rho1 = res[j]["P1"], res[j]["rho1"]
+            if j in hold:
+                k = lockable.index(j)
+                P1 = ca.if_else(mask[k], hold[j]["bend"] + S[k] * hold[j]["e_S"], P1)
+                rho1 = ca.if_else(mask[k], hold[j]["rho"], rho1)
+            force1 = force1 + P1
+            torque1 = torque1 + ca.cross(rho1, P1)
+        acc1 = g + R1 @ force1 / m
+        vel1 = vel_h + h / 2 * acc1
+        omega1 = omega_h + h / 2 * (inertia_inv @ (torque1 - ca.cross(omega_h, inertia @ omega_h)))
+        return vel1, omega1, acc1, force1, torque1
+
+    def held_rates(mask, v, w):
+        return ca.vertcat(*[ca.if_else(mask[k], stroke_rate(hold[j]["rho"], hold[j]["e_S"], v, w,
+                                                              R1), 0.0)
+                            for k, j in enumerate(lockable)])
+
+    def within(j, S):
+        """S between the curves and the held force in the friction cone."""
+        return ca.logic_and(ca.logic_and(hold[j]["lo"] <= S, S <= hold[j]["hi"]),
+                            inside_cone(hold[j]["bend"] + S * hold[j]["e_S"], res[j]["n_b"], mu))
+
+    if lockable:
+        n_lk = len(lockable)
+        mu_sym = ca.SX.sym("mu_lock", n_lk)
+        lam_sym = ca.SX.sym("lam", n_lk)
+        nu = ca.SX.sym("nu", 6)
+        W = ca.diagcat(ca.DM.eye(3) / m, inertia_inv)          # M⁻¹ of (v, ω)
+
+        def any_of(flags):
+            out = flags[0]
+            for f in flags[1:]:
+                out = ca.logic_or(out, f)
+            return out
+
+        def rattle(held, fixed, S_fixed):
+            """v, ω, μ: the legs of ``held`` with zero stroke rate at the end (RATTLE), the
+            legs of ``fixed`` stuck with the axial forces ``S_fixed``."""
+            S = [ca.if_else(fixed[k], S_fixed[k], mu_sym[k]) for k in range(n_lk)]
+            both = [ca.logic_or(held[k], fixed[k]) for k in range(n_lk)]
+            v_mu, w_mu = second_kick(both, S)[:2]
+            rate = held_rates(held, v_mu, w_mu) + ca.vertcat(
+                *[ca.if_else(held[k], 0.0, mu_sym[k]) for k in range(n_lk)])
+            mu_value = newton_masked(rate, mu_sym, held, iterations=1)
+            v1, w1 = ca.substitute([v_mu, w_mu], [mu_sym], [mu_value])
+            return v1, w1, mu_value
+
+        def holding(held, fixed, S_fixed, v1, w1):
+            """v, ω projected onto the held strokes (in the metric of M) and the forces
+            that hold them (δ_S″ = 0), the legs of ``fixed`` stuck with ``S_fixed``."""
+            G = ca.substitute(ca.jacobian(held_rates(held, nu[0:3], nu[3:6]), nu), nu,
+                              ca.DM.zeros(6))                   # the rates are linear in ν
+            nu1 = ca.vertcat(v1, w1)
+            nu_p = nu1 - W @ G.T @ solve_masked(G @ W @ G.T, G @ nu1, held)
+            v_p, w_p = nu_p[0:3], nu_p[3:6]
+            S = [ca.if_else(fixed[k], S_fixed[k], lam_sym[k]) for k in range(n_lk)]
+            both = [ca.logic_or(held[k], fixed[k]) for k in range(n_lk)]
+            _, _, _, f_lam, t_lam = second_kick(both, S)
+            a_lam = g + R1 @ f_lam / m
+            alpha_lam = inertia_inv @ (t_lam - ca.cross(w_p, inertia @ w_p))
+            dd = ca.vertcat(*[ca.if_else(held[k], stroke_acceleration(
+                hold[j]["rho"], hold[j]["e_S"], hold[j]["L"], v_p, w_p, a_lam, alpha_lam, R1),
+                lam_sym[k]) for k, j in enumerate(lockable)])
+            return v_p, w_p, newton_masked(dd, lam_sym, held, iterations=1)
+
+        none = [ca.SX(0)] * n_lk
+        zero = [ca.SX(0)] * n_lk
+        # RATTLE on the locked legs; μ off [S_u, S_l], or the held force out of the cone,
+        # releases a leg onto the curve nearer to its stored force
+        locked = [locked0[j] for j in lockable]
+        _, _, mu1 = rattle(locked, none, zero)
+        keep = [ca.logic_and(locked[k], within(j, mu1[k])) for k, j in enumerate(lockable)]
+        v_a, w_a, _ = rattle(keep, none, zero)
+        # a foot in contact whose chord says its stroke reversed: the force that would hold
+        # its stroke, stuck where it was, after the velocities are projected onto the held
+        # strokes (the contact step's own answer carried the wrong branch's force, which may
+        # even have made it slip). Between the curves and in the cone: it locks. Beyond the
+        # curve of its stored branch: the reversal was not one (a chord of O(h³) after a
+        # release), it stays on that branch, stuck. Else: a direct switch.
+        cand, stored_S, end_loading = [], [], []
+        for k, j in enumerate(lockable):
+            r = res[j]
+            flip, ax = branch_flip(fns_of[j], p_of[j], rho0[j], feet[j]["force_body"], r["l"], h,
+                                   stored_loading[j])
+            end_loading.append(ca.if_else(locked0[j], release_loading[j],
+                                          ca.if_else(r["in_contact"], ax["new_loading"], 1.0)))
+            cand.append(ca.logic_and(ca.logic_and(ca.logic_not(locked0[j]), flip),
+                                     r["in_contact"]))
+            stored_S.append(ca.if_else(ax["stored_loading"], hold[j]["S_load"],
+                                       hold[j]["S_unload"]))
+        # a leg that RATTLE released alone is tried again with the others: two legs may
+        # hold together where neither holds alone
+        retry = [ca.logic_and(locked[k], ca.logic_not(keep[k])) for k in range(n_lk)]
+        _, _, lam1 = holding([ca.logic_or(ca.logic_or(keep[k], cand[k]), retry[k])
+                              for k in range(n_lk)], none, zero, v_a, w_a)
+        accept, stay = [], []
+        for k, j in enumerate(lockable):
+            accept.append(ca.logic_and(ca.logic_or(cand[k], retry[k]), within(j, lam1[k])))
+            outside = ca.logic_or(lam1[k] < hold[j]["lo"], lam1[k] > hold[j]["hi"])
+            beyond_stored = ca.logic_and(outside, ca.fabs(lam1[k] - stored_S[k]) < ca.fabs(
+                lam1[k] - (hold[j]["S_load"] + hold[j]["S_unload"] - stored_S[k])))
+            stay.append(ca.logic_and(ca.logic_and(cand[k], ca.logic_not(accept[k])),
+                                     ca.logic_and(beyond_stored, inside_cone(
+                                         hold[j]["bend"] + stored_S[k] * hold[j]["e_S"],
+                                         res[j]["n_b"], mu))))
+        v_b, w_b, mu2 = rattle(keep, stay, stored_S)
+        keep = [ca.logic_or(keep[k], ca.logic_and(retry[k], accept[k])) for k in range(n_lk)]
+        held = [ca.logic_or(keep[k], accept[k]) for k in range(n_lk)]
+        v_p, w_p, lam2 = holding(held, stay, stored_S, v_b, w_b)
+        entered = any_of(accept)
+        vel1, omega1 = ca.if_else(entered, v_p, v_b), ca.if_else(entered, w_p, w_b)
+        S_end = ca.if_else(entered, lam2, mu2)
+        locked1 = {j: held[k] for k, j in enumerate(lockable)}
+        stuck1 = {j: ca.logic_or(held[k], stay[k]) for k, j in enumerate(lockable)}
+        S1 = {j: ca.if_else(stay[k], stored_S[k], S_end[k]) for k, j in enumerate(lockable)}
+        loading1 = {j: ca.if_else(stay[k], stored_loading[j], end_loading[k])
+                    for k, j in enumerate(lockable)}
+        acc1 = second_kick([stuck1[j] for j in lockable], [S1[j] for j in lockable])[2]
+    else:
+        vel1, omega1, acc1, _, _ = second_kick([], [])
+        locked1, stuck1, S1, loading1 = {}, {}, {}, {}
+
+    new_feet, outputs = [], []
+    switch_force, switch_torque = ca.DM.zeros(3), ca.DM.zeros(3)   # (B1)
+    for j, leg in enumerate(legs):
+        r, fns = res[j], fns_of[j]
+        stays, rho1, foot_w, P1 = r["stays"], r["rho1"], r["foot_w"], r["P1"]
+        contact = ca.if_else(stays, 1.0, 0.0)
+        b1_active = ca.logic_and(r["in_contact"], stays)
+        if j in locked1:
+            lk, st = locked1[j], stuck1[j]
+            stays = ca.logic_or(stays, st)
+            rho1 = ca.if_else(st, hold[j]["rho"], rho1)
+            foot_w = ca.if_else(st, hold[j]["foot_w"], foot_w)
+            P1 = ca.if_else(st, hold[j]["bend"] + S1[j] * hold[j]["e_S"], P1)
+            contact = ca.if_else(lk, LOCKED, ca.if_else(stays, ca.if_else(loading1[j], 1.0,
+                                                                          UNLOADING), 0.0))
+            b1_active = ca.logic_and(b1_active, ca.logic_not(ca.logic_or(st, locked0[j])))
+        new_feet.append(dict(foot=foot_w, contact=contact, force_body=P1))
+        if scene.events in ("branch", "lock") and locates_switch(leg):
             # the kick at the located loading/unloading switch (symcushion.branch_switch)
             dF, dT, _ = branch_switch_kick(
-                fns, p_leg, dict(rho0=rho_s, F0=foot["force_body"], rho1=rho1, F1=P1,
-                                 active=ca.logic_and(in_contact, stays)),
-                dict(h=h, R=R, R1=R1, v=vel, omega=omega, l=l))
+                fns, p_of[j], dict(rho0=r["rho_s"], F0=feet[j]["force_body"], rho1=rho1, F1=P1,
+                                   active=b1_active, stored_loading=stored_loading.get(j)),
+                dict(h=h, R=R, R1=R1, v=vel, omega=omega, l=r["l"]))
             switch_force, switch_torque = switch_force + dF, switch_torque + dT
 
-        slipping = ca.dot(out["k"], out["k"]) > 0
+        slipping = ca.dot(r["out"]["k"], r["out"]["k"]) > 0
+        if j in stuck1:
+            slipping = ca.logic_and(slipping, ca.logic_not(stuck1[j]))
         mode = ca.if_else(stays, ca.if_else(slipping, 2.0, 1.0),
-                          ca.if_else(active, 3.0, 0.0))
+                          ca.if_else(r["active"], 3.0, 0.0))
         geo = fns["strut_geometry"].call(dict(r=rho1))
         outputs.append(dict(in_contact=ca.if_else(stays, 1.0, 0.0), mode=mode, force=R1 @ P1,
-                            normal=ca.if_else(stays, normal_w, ca.DM.zeros(3)),
+                            normal=ca.if_else(stays, r["normal_w"], ca.DM.zeros(3)),
                             axis=R1 @ geo["e_S"], stroke=geo["delta_S"], beta=geo["beta"],
                             gamma_deflection=geo["gamma"] - leg.gamma0))
 
-    # 4. second half kick with the new forces
-    acc1 = g + R1 @ force1 / m
-    vel1 = vel_h + h / 2 * acc1 + h * switch_force / m
-    omega1 = (omega_h + h / 2 * (inertia_inv @ (torque1 - ca.cross(omega_h, inertia @ omega_h)))
-              + h * (inertia_inv @ switch_torque))
+    # 4. second half kick: the located switches' correction (B1)
+    vel1 = vel1 + h * switch_force / m
+    omega1 = omega1 + h * (inertia_inv @ switch_torque)
 
     x_next = xl.pack(position=pos1, velocity=vel1, attitude=quat1, angular_velocity=omega1,
                      **{f: [foot[f] for foot in new_feet] for f in ("foot", "contact",

@@ -138,10 +138,11 @@ def test_variants_remove_their_events(variant):
     axial = {leg.elements[0].name: leg.elements[0].curve for leg in scene.legs}
     assert set(axial) == {"S"}
     unloading = [curve.unloading is not None for curve in axial.values()]
-    assert all(unloading) == (variant in ("all events", "stick", "flat"))
-    assert scene.mu == (event_order.STICK_MU if variant in ("stick", "none") else base.mu)
+    assert all(unloading) == (variant in ("all events", "stick", "flat", "stick, flat"))
+    assert scene.mu == (event_order.STICK_MU if variant in ("stick", "stick, flat", "none")
+                        else base.mu)
     level = np.allclose(scene.obstacles[0].n, [0.0, 0.0, 1.0], atol=1e-12)
-    assert level == (variant in ("flat", "none"))
+    assert level == (variant in ("flat", "stick, flat", "none"))
 
 
 def test_bad_variant_is_rejected():
@@ -162,10 +163,12 @@ def test_every_variant_runs_with_each_slip_rule():
     assert sorted(hop) == sorted(event_order.SLIP_RULES)
 
 
-def test_the_branch_rows_run_the_located_switch_with_the_midpoint_rule():
-    branch = [case for case in event_order.scenes() if case[3].events == "branch"]
-    slope = sorted(variant for name, variant, _, _ in branch if name == "lander_slope")
-    assert slope == sorted(f"{v} (midpoint, branch)" for v in event_order.BRANCH_VARIANTS)
-    assert [variant for name, variant, _, _ in branch if name == "lander_hop"] == [
-        "all events (midpoint, branch)"]
-    assert all(scene.slip == "midpoint" for _, _, _, scene in branch)
+@pytest.mark.parametrize("events", event_order.EVENT_OPTIONS)
+def test_the_event_rows_run_with_the_midpoint_rule(events):
+    # the located switch ("branch") and the switch with the stroke lock ("lock")
+    rows = [case for case in event_order.scenes() if case[3].events == events]
+    slope = sorted(variant for name, variant, _, _ in rows if name == "lander_slope")
+    assert slope == sorted(f"{v} (midpoint, {events})" for v in event_order.BRANCH_VARIANTS)
+    assert [variant for name, variant, _, _ in rows if name == "lander_hop"] == [
+        f"all events (midpoint, {events})"]
+    assert all(scene.slip == "midpoint" for _, _, _, scene in rows)

@@ -57,7 +57,7 @@ contains TEXT (no output written).
 from __future__ import annotations
 
 from .cases import (BRANCH_VARIANTS, BUILD, CHUNK, COLUMNS, DOC, DT_CHECK, DT_GRID, DT_REF,
-                    ERROR_KEYS, FIGURES, FLAT_GAP, REVERSAL_DTS, ROOT, SLIP_DT,
+                    ERROR_KEYS, EVENT_OPTIONS, FIGURES, FLAT_GAP, REVERSAL_DTS, ROOT, SLIP_DT,
                     SLIP_RULES, STICK_MU, STUDIES, VARIANTS, case_label, scenes)
 from .cases import _variant_data  # noqa: F401 - the tests build a variant's scene data with it
 from .controls import (CONTROLS, CONTROL_DTS, CONTROL_DT_REF, CONTROL_DURATION, CONTROL_STIFFNESS,
@@ -74,7 +74,7 @@ from .text import cost_ratios, report_text
 __all__ = [
     "BRANCH_VARIANTS", "BUILD", "CHUNK", "COLUMNS", "CONTROLS", "CONTROL_DTS", "CONTROL_DT_REF",
     "CONTROL_DURATION", "CONTROL_STIFFNESS", "COST_DT", "COST_ROUNDS", "DOC", "DT_CHECK",
-    "DT_GRID", "DT_REF", "ERROR_KEYS", "FIGURES", "FLAT_GAP", "LINES", "PANELS", "REVERSAL_DTS",
+    "DT_GRID", "DT_REF", "ERROR_KEYS", "EVENT_OPTIONS", "FIGURES", "FLAT_GAP", "LINES", "PANELS", "REVERSAL_DTS",
     "ROOT", "SETTLE_DT", "SLIP_DT", "SLIP_RULES", "STARTS", "STICK_MU", "STUDIES", "STYLE",
     "SWITCH_DTS", "SWITCH_KICK", "SWITCH_REF", "VARIANTS", "at_step", "case_label",
     "control_scene", "controls", "controls_text", "cost_check", "cost_ratios", "cost_text",

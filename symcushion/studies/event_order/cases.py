@@ -37,14 +37,21 @@ FLAT_GAP = 1e-3
 CHUNK = 2000
 #: Δt at which the slipping share of the contact samples is counted (s).
 SLIP_DT = 1e-4
-VARIANTS = ("all events", "elastic", "stick", "flat", "none")
+#: The lander's variants: each removes some of its events. "stick, flat" keeps
+#: only the absorbers' branch switches and locks (level ground, μ = STICK_MU):
+#: the feet that lock stick, the case the stroke lock (``events = "lock"``)
+#: is built for.
+VARIANTS = ("all events", "elastic", "stick", "flat", "stick, flat", "none")
 #: Slip rules of the implicit contact step (``Scene.slip``): every variant runs
 #: with each; a case's label is the variant, with " (midpoint)" for the second.
 SLIP_RULES = ("backward", "midpoint")
 #: Variants that also run with ``events = "branch"`` (midpoint slip rule):
 #: those with the unloading branch, and ``elastic`` (no switch: the option
 #: must change nothing).
-BRANCH_VARIANTS = ("all events", "elastic", "stick", "flat")
+BRANCH_VARIANTS = ("all events", "elastic", "stick", "flat", "stick, flat")
+#: Event rules beyond "none" that run on :data:`BRANCH_VARIANTS` and on the hop
+#: scene (midpoint slip rule): the located switch, and the switch with the lock.
+EVENT_OPTIONS = ("branch", "lock")
 #: Δt at which :func:`reversals` counts the stroke reversals (s): if a leg
 #: reverses once per turning point the counts are equal; if it chatters
 #: between its branches they grow as 1/Δt.
@@ -75,9 +82,9 @@ def _variant_data(data: dict, variant: str, slip: str = "backward", events: str 
         data["scene"]["events"] = events
     if variant in ("elastic", "none"):
         data["legs"]["S"].pop("unloading")
-    if variant in ("stick", "none"):
+    if variant in ("stick", "stick, flat", "none"):
         data["scene"]["mu"] = STICK_MU
-    if variant in ("flat", "none"):
+    if variant in ("flat", "stick, flat", "none"):
         data["obstacle"][0]["angle"] = 0.0
         scene = scene_from_dict(data, "<variant>")
         lowest = max(-float(leg.rest_foot[2]) for leg in scene.legs)
@@ -92,13 +99,13 @@ def scenes():
     """(scene name, case label, slip rule, Scene) of every case of the study."""
     base = read_toml(STUDIES / "lander_slope.toml")
     cases = [(v, r, "none") for r in SLIP_RULES for v in VARIANTS]
-    cases += [(v, "midpoint", "branch") for v in BRANCH_VARIANTS]
+    cases += [(v, "midpoint", e) for e in EVENT_OPTIONS for v in BRANCH_VARIANTS]
     out = [("lander_slope", case_label(*c), c[1],
             scene_from_dict(_variant_data(base, *c), f"lander_slope:{case_label(*c)}"))
            for c in cases]
     hop = read_toml(STUDIES / "lander_hop.toml")
     out.append(("lander_hop", "all events", "backward", scene_from_dict(hop, "lander_hop.toml")))
-    for c in (("all events", "midpoint", "none"), ("all events", "midpoint", "branch")):
+    for c in [("all events", "midpoint", e) for e in ("none",) + EVENT_OPTIONS]:
         out.append(("lander_hop", case_label(*c), c[1],
                     scene_from_dict(_variant_data(hop, *c), f"lander_hop.toml:{case_label(*c)}")))
     return out

@@ -11,9 +11,11 @@ from .cases import DT_GRID
 
 
 STYLE = {"clean switch": ("tab:purple", "P"), "all events": ("k", "o"), "elastic": ("tab:blue", "s"), "stick": ("tab:orange", "^"),
-         "flat": ("tab:green", "v"), "none": ("tab:red", "D")}
+         "flat": ("tab:green", "v"), "stick, flat": ("tab:brown", "P"),
+         "none": ("tab:red", "D")}
 #: Line style and filled marker of each rule suffix of a case label.
-LINES = {"": ("-", True), " (midpoint)": ("--", False), " (midpoint, branch)": (":", True)}
+LINES = {"": ("-", True), " (midpoint)": ("--", False), " (midpoint, branch)": (":", True),
+         " (midpoint, lock)": ("-", True)}
 PANELS = (("lander_slope", "trajectory_error", "lander, 10° slope: trajectory error (relative)"),
           ("lander_slope", "rebound_error", "lander, 10° slope: rebound error (m/s)"),
           ("lander_hop", "final_error", "lander with a hop: final-state error at 0.6 s"),
@@ -42,11 +44,13 @@ def plot(rows, fits, path):
             base = fit["variant"].split(" (")[0]
             colour, marker = STYLE[base]
             rule = fit["variant"][len(base):]
+            if scene == "lander_slope" and rule in ("", " (midpoint)"):
+                continue        # the slope panels: the event schemes (the CSV has every row)
             line, face = LINES[rule]
             order = fit[key][0]
             label = fit["variant"] + (f" (order {order:.2f})" if np.isfinite(order) else "")
             ax.plot([r["dt"] for r in sel], [r[key] for r in sel], line, marker=marker,
-                    color=colour, ms=5, lw=1.6 if rule.endswith("branch)") else 1.2,
+                    color=colour, ms=5, lw=2.2 if rule.endswith("lock)") else 1.2,
                     mfc=colour if face else "none", label=label)
             anchors += [r[key] for r in sel if r["dt"] == finest]
         anchor = 0.3 * min(anchors, default=1.0)
@@ -61,8 +65,10 @@ def plot(rows, fits, path):
         ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=2)
     fig.suptitle("Event-order study: implicit contact step, Verlet body step; each variant "
                  "removes some of the lander's events (none: all three)\n"
-                 "solid: default; dashed, open markers: midpoint slip rule; dotted: midpoint "
-                 "and events = 'branch' (the kick at the located branch switch)", fontsize=10)
+                 "thin solid: default; dashed, open markers: midpoint slip rule; dotted: midpoint "
+                 "and events = 'branch' (the kick at the located branch switch); thick solid: "
+                 "midpoint and events = 'lock' (the switch and the stroke lock)\n"
+                 "slope panels: the branch and lock rows only", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -46,12 +46,35 @@ def slip_fraction(model, scene, dt=SLIP_DT) -> float:
     return float(np.sum(traj.mode[1:] == 2) / max(np.sum(contact), 1))
 
 
+#: A stroke change below this (m) is a held stroke (``events = "lock"`` holds
+#: it to round-off), not a step in either direction.
+HELD_STROKE = 1e-12
+
+
 def leg_reversals(traj) -> tuple:
-    """Per leg, the steps whose stroke change has the other sign than the previous step's,
-    both in contact: one per turning point of the stroke (a branch switch)."""
-    change = np.sign(np.diff(np.asarray(traj.stroke), axis=0))
-    change *= np.asarray(traj.contact)[1:] > 0.5
-    return tuple(int(n) for n in np.sum(change[1:] * change[:-1] < 0, axis=0))
+    """Per leg, the stroke changes with the other sign than the leg's previous change in
+    the same contact: one per turning point of the stroke (a branch switch or a lock).
+
+    Steps whose stroke changes by less than :data:`HELD_STROKE` (a locked stroke) are
+    skipped, so that a lock followed by a release the other way counts once.
+    """
+    stroke = np.asarray(traj.stroke)
+    contact = np.asarray(traj.contact) > 0.5
+    change = np.diff(stroke, axis=0)
+    out = []
+    for j in range(stroke.shape[1]):
+        count, last = 0, 0.0
+        for k in range(change.shape[0]):
+            if not (contact[k, j] and contact[k + 1, j]):
+                last = 0.0                      # a new contact starts afresh
+                continue
+            if abs(change[k, j]) <= HELD_STROKE:
+                continue
+            sign = np.sign(change[k, j])
+            count += bool(last and sign != last)
+            last = sign
+        out.append(count)
+    return tuple(out)
 
 
 def reversals(model, scene, dts=REVERSAL_DTS) -> list:

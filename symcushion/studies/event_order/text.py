@@ -29,7 +29,8 @@ def cost_ratios(rows):
 
     out = []
     for scene, variant in sorted({(r["scene"], r["variant"]) for r in rows
-                                  if r.get("events") == "branch" and r.get("cpu_per_sim_second")}):
+                                  if r.get("events") in ("branch", "lock")
+                                  and r.get("cpu_per_sim_second")}):
         mine = cost(scene, variant)
         base = variant.split(" (")[0]
         ratios = []
@@ -56,14 +57,16 @@ def report_text(rows, fits, seconds):
              "own); slip: share of the contact samples in slip at "
              f"Δt = {SLIP_DT:g} s; reversals: each leg's stroke reversals in contact at "
              f"Δt = {' / '.join(f'{d:g}' for d in REVERSAL_DTS)} s (one per turning point; "
-             "growing as 1/Δt where the leg chatters between its branches):", "",
+             "growing as 1/Δt where the leg chatters between its branches; a held stroke, "
+             "changing by less than 1e-12 m, is not a step either way):", "",
              "| scene | variant | slip | trajectory | rebound | final state | reversals |",
              "|---|---|---:|---|---|---|---|"]
     for f in fits:
         lines.append(f"| {f['scene']} | {f['variant']} | {f['slip_fraction']:.0%} | "
                      f"{_fmt_order(f['trajectory_error'])} | {_fmt_order(f['rebound_error'])} | "
                      f"{_fmt_order(f['final_error'])} | {f['reversals']} |")
-    lines += ["", "Cost of `events = \"branch\"` (compiled, this run): CPU per simulated second "
+    lines += ["", "Cost of `events = \"branch\"` and `\"lock\"` (compiled, this run): CPU per "
+              "simulated second "
               "over that of the same variant with the midpoint rule alone and with the default "
               "step, median over the grid:", "",
               "| scene | variant | against midpoint | against default |", "|---|---|---:|---:|"]
