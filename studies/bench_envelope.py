@@ -20,8 +20,9 @@ interval and a paired (McNemar) test of the change, and the CPU per case of
 each variant; plus the marginal case of the envelope study in every variant.
 
 Class changes (``--class-changes``): 2,000 cases at Δt = 1, 0.5 and
-0.25 ms with each slip rule of the implicit step — the share of cases whose
-class changes when Δt is halved.
+0.25 ms with the default step, the midpoint slip rule and that with the
+absorbers' stroke lock — the share of cases whose class changes when Δt is
+halved.
 
 Each writes its section of docs/envelope.md (``symcushion.report``).
 
@@ -203,48 +204,56 @@ def accuracy() -> str:
 #: (docs/scenes.md, "Slip rule").
 CHANGE_CASES = 2000
 CHANGE_DTS = (1e-3, 5e-4, 2.5e-4)
-SLIP_RULES = ("backward", "midpoint")
+#: (slip rule, event rule) of the class-change runs: the default step, the
+#: midpoint slip rule, and that with the absorbers' stroke lock.
+SCHEMES = (("backward", "none"), ("midpoint", "none"), ("midpoint", "lock"))
 #: Class pairs listed per comparison, the most frequent first.
 CHANGE_PAIRS = 5
 
 
+def _scheme_label(scheme) -> str:
+    slip, events = scheme
+    return slip if events == "none" else f"{slip}, {events}"
+
+
 def class_changes(n: int = CHANGE_CASES) -> str:
-    """Share of cases whose class changes when Δt is halved, for each slip rule."""
+    """Share of cases whose class changes when Δt is halved, for each scheme of SCHEMES."""
     base = load_study(STUDY).with_(n=n)
     cond = sample_conditions(base)
     classes = {}
-    for slip in SLIP_RULES:
+    for scheme in SCHEMES:
+        slip, events = scheme
         for dt in CHANGE_DTS:
-            study = base.with_(scene=base.scene.with_(dt=dt, slip=slip))
+            study = base.with_(scene=base.scene.with_(dt=dt, slip=slip, events=events))
             started = time.perf_counter()
             r = evaluate(study, cond, threads=os.cpu_count() or 1, cache_dir=CACHE,
                          progress=True)
-            classes[slip, dt] = r["class"]
-            print(f"slip {slip}, dt = {dt:g}: {time.perf_counter() - started:.1f} s",
+            classes[scheme, dt] = r["class"]
+            print(f"{_scheme_label(scheme)}, dt = {dt:g}: {time.perf_counter() - started:.1f} s",
                   flush=True)
-    lines = ["| slip rule | " + " | ".join(
+    lines = ["| slip rule, events | " + " | ".join(
         f"{a * 1e3:g} → {b * 1e3:g} ms" for a, b in zip(CHANGE_DTS, CHANGE_DTS[1:]))
         + " | P(stable) at " + " / ".join(f"{dt * 1e3:g}" for dt in CHANGE_DTS) + " ms |",
         "|---|" + "---:|" * (len(CHANGE_DTS) - 1) + "---|"]
-    for slip in SLIP_RULES:
-        cells = [f"{np.mean(classes[slip, a] != classes[slip, b]):.2%}"
+    for scheme in SCHEMES:
+        cells = [f"{np.mean(classes[scheme, a] != classes[scheme, b]):.2%}"
                  for a, b in zip(CHANGE_DTS, CHANGE_DTS[1:])]
-        cells.append(" / ".join(f"{np.mean(classes[slip, dt] == 'stable'):.3f}"
+        cells.append(" / ".join(f"{np.mean(classes[scheme, dt] == 'stable'):.3f}"
                                 for dt in CHANGE_DTS))
-        lines.append(f"| {slip} | " + " | ".join(cells) + " |")
+        lines.append(f"| {_scheme_label(scheme)} | " + " | ".join(cells) + " |")
     pairs = []
-    for slip in SLIP_RULES:
+    for scheme in SCHEMES:
         for a, b in zip(CHANGE_DTS, CHANGE_DTS[1:]):
-            moves = Counter(f"{x} → {y}" for x, y in zip(classes[slip, a], classes[slip, b])
+            moves = Counter(f"{x} → {y}" for x, y in zip(classes[scheme, a], classes[scheme, b])
                             if x != y)
-            pairs.append(f"* {slip}, {a * 1e3:g} → {b * 1e3:g} ms: " + ", ".join(
+            pairs.append(f"* {_scheme_label(scheme)}, {a * 1e3:g} → {b * 1e3:g} ms: " + ", ".join(
                 f"{k} {v}" for k, v in moves.most_common(CHANGE_PAIRS)))
     lines += ["", "The most frequent changes (class at Δt → class at Δt/2, cases):", ""] + pairs
     return (f"Produced by `python studies/bench_envelope.py --class-changes`: the first {n:,} "
             f"cases of the example study (its seed, {base.seed}), exact contact step, run at "
-            "Δt = " + ", ".join(f"{dt * 1e3:g}" for dt in CHANGE_DTS) + " ms with each slip "
-            "rule of the implicit step; the share of cases whose class changes when Δt is "
-            "halved.\n\n" + "\n".join(lines))
+            "Δt = " + ", ".join(f"{dt * 1e3:g}" for dt in CHANGE_DTS) + " ms with the default "
+            "step, the midpoint slip rule, and that with the stroke lock (`events = \"lock\"`); "
+            "the share of cases whose class changes when Δt is halved.\n\n" + "\n".join(lines))
 
 
 def _variant_label(variant) -> str:
@@ -498,7 +507,7 @@ def main(argv=None) -> None:
                         help="compare contact methods, tangent planes and Δt with "
                              "'implicit' at 0.5 ms instead")
     parser.add_argument("--class-changes", action="store_true",
-                        help="share of classes that change when Δt is halved, per slip rule, "
+                        help="share of classes that change when Δt is halved, per scheme of the step, "
                              "instead")
     parser.add_argument("--threads", type=int, default=os.cpu_count() or 1,
                         help="threads of --methods (default every core)")

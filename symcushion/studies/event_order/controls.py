@@ -188,10 +188,10 @@ def controls_text(rows):
     return "\n".join(lines)
 
 
-#: Interleaved timing of the located switch (``--cost``): Δt (s) and rounds;
-#: each round runs the default, the midpoint and the midpoint + branch case of
-#: a variant once, and the fastest of the rounds counts, so that the load of
-#: the shared machine falls on all three alike.
+#: Interleaved timing of the located switch and the lock (``--cost``): Δt (s)
+#: and rounds; each round runs the default, the midpoint, the midpoint + branch
+#: and the midpoint + lock case of a variant once, and the fastest of the
+#: rounds counts, so that the load of the shared machine falls on all alike.
 COST_DT = 1e-4
 COST_ROUNDS = 7
 
@@ -202,7 +202,8 @@ def cost_check(progress=print):
     out = []
     for name, label in sorted(k for k, scene in cases.items() if scene.events == "branch"):
         base = label.split(" (")[0]
-        labels = (base, case_label(base, "midpoint"), label)
+        labels = (base, case_label(base, "midpoint"), label,
+                  case_label(base, "midpoint", "lock"))
         models = {lab: compiled_model(cases[(name, lab)], BUILD / cases[(name, lab)].name,
                                       steps=CHUNK) for lab in labels}
         best = dict.fromkeys(labels, float("inf"))
@@ -219,12 +220,15 @@ def cost_text(rows):
     """The section "Events: cost" of the docs."""
     lines = ["Interleaved timing (`python studies/event_order.py --cost`): compiled C, "
              f"Δt = {COST_DT:g} s, CPU s per simulated second, the fastest of {COST_ROUNDS} "
-             "rounds, each round running the three cases of a variant one after the other. "
-             "The elastic variant has no unloading branch: its midpoint and midpoint + branch "
-             "steps are the same graph, and their ratio is the scatter of the timing.", "",
-             "| scene | variant | default | midpoint | midpoint + branch | "
-             "branch / midpoint | branch / default |", "|---|---|---:|---:|---:|---:|---:|"]
-    for name, base, default, midpoint, branch in rows:
+             "rounds, each round running the four cases of a variant one after the other. "
+             "The elastic variant has no unloading branch: its midpoint, midpoint + branch and "
+             "midpoint + lock steps are the same graph, and their ratios are the scatter of "
+             "the timing.", "",
+             "| scene | variant | default | midpoint | midpoint + branch | midpoint + lock | "
+             "branch / midpoint | lock / midpoint | lock / default |",
+             "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
+    for name, base, default, midpoint, branch, lock in rows:
         lines.append(f"| {name} | {base} | {default:.3g} | {midpoint:.3g} | {branch:.3g} | "
-                     f"{branch / midpoint:.2f} | {branch / default:.2f} |")
+                     f"{lock:.3g} | {branch / midpoint:.2f} | {lock / midpoint:.2f} | "
+                     f"{lock / default:.2f} |")
     return "\n".join(lines)
