@@ -315,7 +315,8 @@ def build_model(scene: Scene) -> StepModel:
     stored_loading = {j: feet[j]["contact"] < 2.5 for j in lockable}
     for j in range(n_legs):
         if j in locked0:
-            # a locked leg that is released takes the curve nearer to its holding force
+            # a lockable leg: if it is locked and is released, it takes the curve nearer
+            # to its holding force
             a = ax0[j]
             S0 = ca.dot(feet[j]["force_body"], a["e_S"])
             to_load = ca.fabs(S0 - a["S_load"]) <= ca.fabs(S0 - a["S_unload"])
@@ -408,14 +409,13 @@ def build_model(scene: Scene) -> StepModel:
                 lam_sym[k]) for k, j in enumerate(lockable)])
             return v_p, w_p, newton_masked(dd, lam_sym, held, iterations=1)
 
-        none = [ca.SX(0)] * n_lk
-        zero = [ca.SX(0)] * n_lk
+        off = [ca.SX(0)] * n_lk                                  # no leg; no force
         # RATTLE on the locked legs; μ off [S_u, S_l], or the held force out of the cone,
         # releases a leg onto the curve nearer to its stored force
         locked = [locked0[j] for j in lockable]
-        _, _, mu1 = rattle(locked, none, zero)
+        _, _, mu1 = rattle(locked, off, off)
         keep = [ca.logic_and(locked[k], within(j, mu1[k])) for k, j in enumerate(lockable)]
-        v_a, w_a, _ = rattle(keep, none, zero)
+        v_a, w_a, _ = rattle(keep, off, off)
         # a foot in contact whose chord says its stroke reversed: the force that would hold
         # its stroke, stuck where it was, after the velocities are projected onto the held
         # strokes (the contact step's own answer carried the wrong branch's force, which may
@@ -437,7 +437,7 @@ def build_model(scene: Scene) -> StepModel:
         # hold together where neither holds alone
         retry = [ca.logic_and(locked[k], ca.logic_not(keep[k])) for k in range(n_lk)]
         _, _, lam1 = holding([ca.logic_or(ca.logic_or(keep[k], cand[k]), retry[k])
-                              for k in range(n_lk)], none, zero, v_a, w_a)
+                              for k in range(n_lk)], off, off, v_a, w_a)
         accept, stay = [], []
         for k, j in enumerate(lockable):
             accept.append(ca.logic_and(ca.logic_or(cand[k], retry[k]), within(j, lam1[k])))
