@@ -164,3 +164,31 @@ def test_csv_has_the_required_columns(tmp_path):
     assert back[0]["rebound_error"] == pytest.approx(2.2e-5)
     with pytest.raises(ValueError, match="unknown column"):
         sve.write_csv([{"scene": "fig3", "speed": 1.0}], tmp_path / "bad.csv")
+
+
+def test_the_lock_variant_runs_only_with_friction():
+    lock = sve.VARIANTS["implicit+midpoint+lock"]
+    fig3, fig4 = (load_scene(sve.STUDIES / f) for f in ("fig3.toml", "fig4.toml"))
+    assert not sve.applies(lock, fig3.mu)            # μ = 0: the scene refuses the lock
+    with pytest.raises(ValueError, match="events"):
+        fig3.with_(**lock)
+    assert sve.applies(lock, fig4.mu)
+    fig4.with_(**lock)                               # builds its scene without complaint
+    assert all(sve.applies(s, 0.0) for m, s in sve.VARIANTS.items() if m != "implicit+midpoint+lock")
+
+
+def test_tables_list_only_the_variants_run_on_a_scene():
+    def row(method, wall, err, backend="c"):
+        return {"scene": "fig3", "method": method, "backend": backend, "dt": 1e-3,
+                "status": "ok", "wall_per_sim_second": wall, "rebound_error": err,
+                "tolerance": 1e-6}
+
+    rows = [row("implicit/c", 0.01, 1e-5), row("paper/c", 0.02, 1e-5), row("paper/c", 0.2, 1e-7),
+            row("penalty-cvodes/rtol=1e-06", 2.0, 1e-6, backend="peer")]
+    assert sve.variants_on(rows, "fig3") == ["paper", "implicit"]   # VARIANTS order
+    assert sve.variants_on(rows, "fig4") == []
+    (entry,) = sve.equal_error_comparison(rows)
+    assert list(entry["ours"]) == ["paper", "implicit"]
+    cost, how = entry["ours"]["paper"]                # halfway in log error: halfway in log cost
+    assert how == "interpolated" and cost == pytest.approx((0.02 * 0.2) ** 0.5, rel=1e-12)
+    assert entry["ours"]["implicit"][1] == "not reached"      # its only error is larger

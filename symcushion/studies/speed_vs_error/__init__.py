@@ -4,7 +4,8 @@ Question: for the Fig. 3 scene (μ = 0), the Fig. 4 scene (μ = 0.05), a
 four-legged lander on a 10° slope (``studies/lander_slope.toml``) and a
 three-legged lander that hops (``studies/lander_hop.toml``), how does the
 error of each variant (:data:`~.grid.VARIANTS`: the contact steps paper,
-robust and implicit, and the implicit step with the midpoint slip rule)
+robust and implicit, and the implicit step with the midpoint slip rule, alone,
+with the located branch switch and with the stroke lock)
 fall with the time step Δt, at what orders, and what does each error level
 cost per simulated second, in CasADi's virtual machine (``VARIANT/vm``) and
 as compiled C (``VARIANT/c``)? The peers of ``symcushion.peers``, a penalty contact model
@@ -71,7 +72,7 @@ them from here) and must not define any:
 from __future__ import annotations
 
 from .csv_io import read_csv, write_csv
-from .grid import (BEST_OF, BUILD, CHUNK, COLUMNS, DOC, DT_GRID, DT_REF, FIGURES, FLOOR_FACTOR,
+from .grid import (BEST_OF, applies, BUILD, CHUNK, COLUMNS, DOC, DT_GRID, DT_REF, FIGURES, FLOOR_FACTOR,
                    MUJOCO_TIMESTEPS, ORDER_DT_MAX, PEER_OUTPUT_DT, PENALTY_RTOLS,
                    QUICK_DT_GRID, QUICK_DT_REF, QUICK_OUT, REBOUND_AIM, REBOUND_BOUND,
                    REPEAT_BELOW, REQUIRED_COLUMNS, ROOT, SCENES, STUDIES, VARIANTS,
@@ -79,7 +80,7 @@ from .grid import (BEST_OF, BUILD, CHUNK, COLUMNS, DOC, DT_GRID, DT_REF, FIGURES
 from .main import main
 from .metrics import errors, metrics, rebound_speed, result_row, trajectory_error
 from .orders import (ERROR_KEYS, convergence_order, cost_at_error, equal_error_comparison,
-                     orders_table, pareto)
+                     orders_table, pareto, variants_on)
 from .peer_runs import peer_rows, run_from_peer
 from .plots import COLOURS, PEER_STYLE, PLOT_FLOOR, TITLES, plot
 from .results_text import report_text
@@ -92,8 +93,8 @@ __all__ = [
     "PEER_OUTPUT_DT", "PEER_STYLE", "PENALTY_RTOLS", "PLOT_FLOOR", "QUICK_DT_GRID",
     "QUICK_DT_REF", "QUICK_OUT", "REBOUND_AIM", "REBOUND_BOUND", "REPEAT_BELOW",
     "REQUIRED_COLUMNS", "ROOT", "Run", "SCENES", "STUDIES", "TITLES", "VARIANTS", "VM_MAX_STEPS",
-    "convergence_order", "cost_at_error", "equal_error_comparison", "errors", "main",
+    "applies", "convergence_order", "cost_at_error", "equal_error_comparison", "errors", "main",
     "metrics", "orders_table", "pareto", "peer_rows", "plot", "read_csv", "rebound_speed",
     "reduce_states", "reference", "report_text", "result_row", "run_from_peer", "run_scene",
-    "simulate_chunked", "trajectory_error", "write_csv",
+    "simulate_chunked", "trajectory_error", "variants_on", "write_csv",
 ]

@@ -67,14 +67,26 @@ SCENES = {
 #: second-order slip rule (docs/scenes.md, "Slip rule"; on a frictionless
 #: scene it is the implicit step itself), also with the absorbers' branch
 #: switch located inside the step (docs/scenes.md, "Branch switch"; without
-#: an unloading branch, as on Figs. 3–4, the same graph as without it).
+#: an unloading branch, as on Figs. 3–4, the same graph as without it), and
+#: with the stroke lock (docs/scenes.md, "Stroke lock"; a scene refuses it
+#: without friction, so Fig. 3 has no such row, see :func:`applies`).
 VARIANTS = {
     "paper": {"method": "paper"},
     "robust": {"method": "robust"},
     "implicit": {"method": "implicit"},
     "implicit+midpoint": {"method": "implicit", "slip": "midpoint"},
     "implicit+midpoint+branch": {"method": "implicit", "slip": "midpoint", "events": "branch"},
+    "implicit+midpoint+lock": {"method": "implicit", "slip": "midpoint", "events": "lock"},
 }
+
+
+def applies(settings: dict, mu: float) -> bool:
+    """Whether a variant's settings make sense on a scene of friction ``mu``.
+
+    The stroke lock holds a stuck foot, so a frictionless scene refuses it
+    (``Scene`` raises); every other variant runs on every scene.
+    """
+    return not (settings.get("events") == "lock" and mu == 0)
 
 #: Columns of the CSV; the first five are the ones the study is built around.
 REQUIRED_COLUMNS = ("scene", "method", "dt", "rebound_error", "wall_per_sim_second")

@@ -83,18 +83,29 @@ def cost_at_error(front, error):
     return float(np.exp(np.interp(-np.log(error), -np.log(errs), np.log(walls)))), "interpolated"
 
 
+def variants_on(rows, scene) -> list:
+    """The variants with compiled rows on ``scene``, in :data:`VARIANTS` order (a variant
+    that does not apply to the scene, such as the stroke lock without friction, has none)."""
+    return [m for m in VARIANTS
+            if any(r["scene"] == scene and r["method"] == f"{m}/c" for r in rows)]
+
+
 def equal_error_comparison(rows, scene="fig3", key="rebound_error"):
-    """For every peer point of a scene: the compiled methods' cost at the same error."""
+    """For every peer point of a scene: the compiled methods' cost at the same error.
+
+    Each entry's ``ours`` maps the variants run on the scene (:func:`variants_on`)
+    to (cost, how) of :func:`cost_at_error`.
+    """
     out = []
     fronts = {m: pareto([(r["wall_per_sim_second"], r.get(key, np.nan)) for r in rows
                          if r["scene"] == scene and r["method"] == f"{m}/c"
-                         and r["status"] == "ok"]) for m in VARIANTS}
+                         and r["status"] == "ok"]) for m in variants_on(rows, scene)}
     for r in rows:
         if r["scene"] != scene or r["backend"] != "peer" or r["status"] != "ok":
             continue
         entry = {"peer": r["method"], "dt": r["dt"], "tolerance": r["tolerance"],
                  "error": r[key], "peer_cost": r["wall_per_sim_second"], "ours": {}}
-        for m in VARIANTS:
+        for m in fronts:
             cost, how = cost_at_error(fronts[m], r[key])
             entry["ours"][m] = (cost, how)
         out.append(entry)

@@ -14,7 +14,8 @@ from .grid import SCENES, VARIANTS
 
 
 COLOURS = {"paper": "tab:blue", "robust": "tab:orange", "implicit": "tab:green",
-           "implicit+midpoint": "tab:olive", "implicit+midpoint+branch": "tab:brown"}
+           "implicit+midpoint": "tab:olive", "implicit+midpoint+branch": "tab:brown",
+           "implicit+midpoint+lock": "black"}
 PEER_STYLE = {"penalty-cvodes": ("tab:red", "s"), "mujoco": ("tab:purple", "D")}
 TITLES = {"fig3": "Fig. 3 (μ = 0)", "fig4": "Fig. 4 (μ = 0.05)",
           "lander_slope": "lander, 10° slope (μ = 0.4)",

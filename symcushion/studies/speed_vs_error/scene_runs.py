@@ -15,7 +15,7 @@ from symcushion.codegen import compiled_model
 from symcushion.scene import Scene, load_scene
 from symcushion.simulate import build_model
 
-from .grid import BUILD, CHUNK, SCENES, STUDIES, VARIANTS, VM_MAX_STEPS
+from .grid import BUILD, CHUNK, SCENES, STUDIES, VARIANTS, VM_MAX_STEPS, applies
 from .metrics import errors, metrics, result_row, trajectory_error
 from .peer_runs import peer_rows
 from .runs import simulate_chunked
@@ -61,6 +61,11 @@ def run_scene(name: str, dt_grid, dt_ref, *, vm=True, peers=True, progress=print
     floor = dict(ref_check["self_error"], trajectory_error=ref_check["trajectory"])
     rows = []
     for method, settings in VARIANTS.items():
+        if not applies(settings, base.mu):
+            notes.append(f"{name}: no {method} rows: the stroke lock holds stuck feet, and "
+                         f"the scene is frictionless (mu = {base.mu:g}), so it refuses "
+                         f"events = 'lock'.")
+            continue
         scene = base.with_(**settings)
         started = time.perf_counter()
         cmodel = compiled_model(scene, folders[method], steps=CHUNK)
