@@ -66,7 +66,8 @@ def _cmd_simulate(args):
     size = model.graph_size()
     print(f"{scene.name}: {len(scene.legs)} legs, method {scene.method}, μ = {scene.mu:g}, "
           f"{scene.steps} steps of {scene.dt:g} s; step graph {size['instructions']} "
-          "instructions", flush=True)
+          "instructions" + (f" (+ {size['gated']} in the stroke lock's calls, run only in "
+                            "the steps that need them)" if size["gated"] else ""), flush=True)
     with ResultWriter(directory, trajectory_columns(len(scene.legs))) as writer:
         traj = _simulate_reporting(scene, model, args, writer)
         meta = {"scene": read_toml(args.scene), "scene_file": str(args.scene),

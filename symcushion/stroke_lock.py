@@ -28,6 +28,11 @@ step becomes the constrained velocity-Verlet step (SHAKE/RATTLE) for it:
   cone. The RATTLE μ of that step is not the holding force: it also carries
   the projection's impulse.
 
+The lock's work runs only in the steps that need it: :func:`skip_unless`
+wraps it in a call that evaluates it when some leg is locked or turns its
+stroke, and otherwise the plain step's values (the same bits the lock
+would give there).
+
 Locked legs are marked in the state by ``contact`` = :data:`LOCKED`, and
 legs on the unloading curve by :data:`UNLOADING` (the lock's tests need the
 stored branch; 1 is the loading curve). A
@@ -42,8 +47,9 @@ from __future__ import annotations
 
 import casadi as ca
 
-__all__ = ["LOCKED", "UNLOADING", "SHAKE_ITERATIONS", "axial_branches", "bending_force", "foot_rate",
-           "stroke_rate", "stroke_acceleration", "newton_masked", "solve_masked", "inside_cone"]
+__all__ = ["LOCKED", "UNLOADING", "SHAKE_ITERATIONS", "any_of", "axial_branches", "bending_force",
+           "foot_rate", "stroke_rate", "stroke_acceleration", "newton_masked", "solve_masked",
+           "inside_cone", "skip_unless"]
 
 #: Value of the state's ``contact`` entry for a foot in contact whose stroke
 #: is locked (1: in contact, 0: free; every reader tests ``contact > 0.5``).
@@ -176,3 +182,39 @@ def inside_cone(P, n, mu):
     N = ca.dot(n, P)
     tangential = P - N * n
     return ca.logic_and(N > 0, ca.dot(tangential, tangential) <= (mu * N) ** 2)
+
+
+def any_of(flags):
+    """The logical or of a non-empty list of SX flags."""
+    out = flags[0]
+    for f in flags[1:]:
+        out = ca.logic_or(out, f)
+    return out
+
+
+#: Options of the Functions behind :func:`skip_unless`: forward-mode AD, as the
+#: SX step's own Jacobian (reverse mode sums in another order), and common
+#: subexpressions merged as in the step.
+_GATED_OPTS = {"ad_weight": 0, "ad_weight_sp": 0}
+
+
+def skip_unless(name, flag, inputs, args, on, off):
+    """The expressions ``on`` where ``flag`` is set, ``off`` elsewhere, as one call node.
+
+    ``inputs`` are the SX symbols both lists of expressions are built on and
+    ``args`` their values in the caller's graph. The call evaluates only the
+    list it returns (``casadi.Function.conditional``), so the work of ``on``
+    is skipped in the steps where ``flag`` is 0; ``off`` must then be the
+    value ``on`` would take, for the step to give the same numbers either
+    way. Derivatives are those of the list taken (the flag is piecewise
+    constant). Returns the list of SX outputs and the Function of ``on``
+    (its size is the work skipped).
+    """
+    f_on = ca.Function(f"{name}_on", inputs, on, dict(_GATED_OPTS, cse=True))
+    f_off = ca.Function(f"{name}_off", inputs, off, dict(_GATED_OPTS, cse=True))
+    switch = ca.Function.conditional(f"{name}_switch", [f_off], f_on, _GATED_OPTS)
+    flag_sym = ca.MX.sym("flag")
+    sym = [ca.MX.sym(f"in{k}", x.sparsity()) for k, x in enumerate(inputs)]
+    call = ca.Function(name, [flag_sym] + sym, switch(flag_sym, *sym),
+                       dict(_GATED_OPTS, never_inline=True))
+    return call(ca.if_else(flag, 1.0, 0.0), *args), f_on

@@ -39,7 +39,10 @@ contact whose chord turns is tested for the lock by the force that holds
 its stroke after the velocities are projected onto the held strokes; the
 ones that do not lock keep the located switch (B1). The state's
 ``contact`` entry marks a locked foot (2) and a foot on the unloading
-curve (3).
+curve (3). The lock's work sits in two calls (``stroke_lock.skip_unless``)
+that run only in the steps where a leg is locked (SHAKE) or is locked or
+turns its stroke in contact (RATTLE and holding solves); the other steps
+take the plain kicks, the same numbers the lock's work gives there.
 
 Order: velocity Verlet is second order and symplectic for smooth forces; the
 contact law is non-smooth, so the measured order is stated by the tests
@@ -73,9 +76,9 @@ from .layout import (BODY_OUT, BODY_STATE, LEG_OUT, LEG_STATE, MODES, ParamLayou
                      quat_to_rot_np, state_layout)
 from .obstacles import closest_obstacle
 from .scene import Scene
-from .stroke_lock import (LOCKED, UNLOADING, axial_branches, bending_force, inside_cone,
-                          newton_masked,
-                          solve_masked, stroke_acceleration, stroke_rate)
+from .stroke_lock import (LOCKED, UNLOADING, any_of, axial_branches, bending_force, inside_cone,
+                          newton_masked, skip_unless, solve_masked, stroke_acceleration,
+                          stroke_rate)
 
 __all__ = ["StepModel", "build_model", "initial_state", "equilibrium_state", "stable_dt",
            "MODES", "STEP_CRITERION_EPS", "STABILITY_SAFETY", "MAX_HALVINGS",
@@ -118,6 +121,11 @@ class StepModel:
         (:class:`~symcushion.layout.ParamLayout`).
     params : ParamLayout
         The layout of ``p`` (read and write its entries by name).
+    gated : dict
+        With ``events = "lock"``: the work of the stroke lock that the step
+        calls only in the steps that need it, by call name (the SHAKE of the
+        first kick, the RATTLE and holding solves of the second), as the
+        SX Functions evaluated then; empty otherwise.
     """
 
     step: ca.Function
@@ -127,6 +135,7 @@ class StepModel:
     np: int
     param_names: tuple
     params: ParamLayout | None = None
+    gated: dict = field(default_factory=dict)
     _rollouts: dict = field(default_factory=dict)
     _body_stiffness: ca.Function | None = None
 
@@ -168,8 +177,10 @@ class StepModel:
         return len(self.scene.legs)
 
     def graph_size(self) -> dict:
-        """Size of the step graph: SX instructions and nodes."""
-        return {"instructions": self.step.n_instructions(), "nodes": self.step.n_nodes()}
+        """Size of the step graph: SX instructions and nodes, and ``gated``: the
+        instructions of the lock's calls (:attr:`gated`), run only when a leg locks."""
+        return {"instructions": self.step.n_instructions(), "nodes": self.step.n_nodes(),
+                "gated": sum(f.n_instructions() for f in self.gated.values())}
 
 
 def _leg_params(scene: Scene):
@@ -230,11 +241,6 @@ def build_model(scene: Scene) -> StepModel:
     fns_of = [leg.functions() for leg in legs]
     p_of = [p[o[0]:o[1]] for o in offsets]
     locked0 = {j: ca.fabs(feet[j]["contact"] - LOCKED) < 0.5 for j in lockable}
-    ax0 = {j: axial_branches(fns_of[j], p_of[j], rho0[j]) for j in lockable}
-    Lam = ca.SX.sym("Lam", len(lockable))
-    for k, j in enumerate(lockable):
-        force = force + Lam[k] * ax0[j]["e_S"]
-        torque = torque + Lam[k] * ca.cross(rho0[j], ax0[j]["e_S"])
 
     def kick_drift(force, torque):
         vel_h = vel + h / 2 * (g + R @ force / m)
@@ -243,16 +249,27 @@ def build_model(scene: Scene) -> StepModel:
         quat1 = quat_mul(quat, quat_exp(h * omega_h))
         return vel_h, omega_h, pos1, quat1 / ca.norm_2(quat1)
 
-    vel_h, omega_h, pos1, quat1 = kick_drift(force, torque)
+    drift = kick_drift(force, torque)
+    gated = {}                      # the lock's calls, by name: the Functions they may skip
     if lockable:
-        # SHAKE: a locked leg's stroke at the end of the drift equals its stroke at the start
-        R1_L = quat_to_rot(quat1)
+        # SHAKE: a locked leg's stroke at the end of the drift equals its stroke at the
+        # start; built only into the call that runs when some leg is locked
+        ax0 = {j: axial_branches(fns_of[j], p_of[j], rho0[j]) for j in lockable}
+        Lam = ca.SX.sym("Lam", len(lockable))
+        for k, j in enumerate(lockable):
+            force = force + Lam[k] * ax0[j]["e_S"]
+            torque = torque + Lam[k] * ca.cross(rho0[j], ax0[j]["e_S"])
+        shake = kick_drift(force, torque)
+        R1_L = quat_to_rot(shake[3])
         held = [ca.if_else(locked0[j], fns_of[j]["strut_geometry"].call(
-                    dict(r=R1_L.T @ (feet[j]["foot"] - pos1)))["delta_S"] - ax0[j]["delta_S"],
-                           Lam[k]) for k, j in enumerate(lockable)]
+                    dict(r=R1_L.T @ (feet[j]["foot"] - shake[2])))["delta_S"]
+                    - ax0[j]["delta_S"], Lam[k]) for k, j in enumerate(lockable)]
         Lam_value = newton_masked(ca.vertcat(*held), Lam, [locked0[j] for j in lockable])
-        vel_h, omega_h, pos1, quat1 = ca.substitute([vel_h, omega_h, pos1, quat1], [Lam],
-                                                    [Lam_value])
+        shake = ca.substitute(list(shake), [Lam], [Lam_value])
+        drift, gated["touchdown_lock_shake"] = skip_unless(
+            "touchdown_lock_shake", any_of(list(locked0.values())), [X, p, h], [X, p, h],
+            shake, list(drift))
+    vel_h, omega_h, pos1, quat1 = drift
     R1 = quat_to_rot(quat1)
 
     # 3. feet
@@ -260,7 +277,7 @@ def build_model(scene: Scene) -> StepModel:
         """The contact step of foot j. ``release`` = (flag, e_S, rate): where the flag
         is set, the axial component of the chord's rate l/h (which picks the
         branch) is replaced by ``rate``."""
-        leg, foot, fns, p_leg = legs[j], feet[j], fns_of[j], p_of[j]
+        foot, fns, p_leg = feet[j], fns_of[j], p_of[j]
         in_contact = foot["contact"] > 0.5
         # free foot: where does its unloaded position cross the surface?
         free0 = pos + R @ rest[j]
@@ -330,54 +347,57 @@ def build_model(scene: Scene) -> StepModel:
         else:
             res.append(foot_contact(j))
 
-    # where each lockable leg would hold: its foot stuck at its stored world point
-    hold = {}
-    for j in lockable:
-        rho = R1.T @ (feet[j]["foot"] - pos1)
-        a = axial_branches(fns_of[j], p_of[j], rho)
-        hold[j] = dict(rho=rho, e_S=a["e_S"], L=a["L"], lo=a["lo"], hi=a["hi"],
-                       S_load=a["S_load"], S_unload=a["S_unload"],
-                       foot_w=feet[j]["foot"],
-                       bend=bending_force(fns_of[j], p_of[j], rho, res[j]["v_rel"], a["e_S"]))
+    def second_kick_of(res, vel_h, omega_h, R1, hold):
+        """second_kick(mask, S): v, ω at the end with the legs of ``mask`` held by the
+        axial forces ``S``, given the contact results ``res`` and the drift."""
+        def second_kick(mask, S):
+            force1, torque1 = ca.DM.zeros(3), ca.DM.zeros(3)
+            for j in range(n_legs):
+                P1, rho1 = res[j]["P1"], res[j]["rho1"]
+                if j in hold:
+                    k = lockable.index(j)
+                    P1 = ca.if_else(mask[k], hold[j]["bend"] + S[k] * hold[j]["e_S"], P1)
+                    rho1 = ca.if_else(mask[k], hold[j]["rho"], rho1)
+                force1 = force1 + P1
+                torque1 = torque1 + ca.cross(rho1, P1)
+            acc1 = g + R1 @ force1 / m
+            vel1 = vel_h + h / 2 * acc1
+            omega1 = omega_h + h / 2 * (inertia_inv @ (torque1 - ca.cross(omega_h,
+                                                                           inertia @ omega_h)))
+            return vel1, omega1, acc1, force1, torque1
+        return second_kick
 
-    def second_kick(mask, S):
-        """v, ω at the end with the legs of ``mask`` held by the axial forces ``S``."""
-        force1, torque1 = ca.DM.zeros(3), ca.DM.zeros(3)
-        for j in range(n_legs):
-            P1, rho1 = res[j]["P1"], res[j]["rho1"]
-            if j in hold:
-                k = lockable.index(j)
-                P1 = ca.if_else(mask[k], hold[j]["bend"] + S[k] * hold[j]["e_S"], P1)
-                rho1 = ca.if_else(mask[k], hold[j]["rho"], rho1)
-            force1 = force1 + P1
-            torque1 = torque1 + ca.cross(rho1, P1)
-        acc1 = g + R1 @ force1 / m
-        vel1 = vel_h + h / 2 * acc1
-        omega1 = omega_h + h / 2 * (inertia_inv @ (torque1 - ca.cross(omega_h, inertia @ omega_h)))
-        return vel1, omega1, acc1, force1, torque1
+    def lock_phase(vel_h, omega_h, pos1, quat1, res, cand, end_loading):
+        """The lock's second kick: v, ω, a at the end and, per lockable leg, its lock and
+        stuck flags, end pose ρ, end force and branch (1 loading)."""
+        R1 = quat_to_rot(quat1)
+        # where each lockable leg would hold: its foot stuck at its stored world point
+        hold = {}
+        for j in lockable:
+            rho = R1.T @ (feet[j]["foot"] - pos1)
+            a = axial_branches(fns_of[j], p_of[j], rho)
+            hold[j] = dict(rho=rho, e_S=a["e_S"], L=a["L"], lo=a["lo"], hi=a["hi"],
+                           S_load=a["S_load"], S_unload=a["S_unload"],
+                           bend=bending_force(fns_of[j], p_of[j], rho, res[j]["v_rel"],
+                                              a["e_S"]))
+        second_kick = second_kick_of(res, vel_h, omega_h, R1, hold)
 
-    def held_rates(mask, v, w):
-        return ca.vertcat(*[ca.if_else(mask[k], stroke_rate(hold[j]["rho"], hold[j]["e_S"], v, w,
-                                                              R1), 0.0)
-                            for k, j in enumerate(lockable)])
+        def held_rates(mask, v, w):
+            return ca.vertcat(*[ca.if_else(mask[k], stroke_rate(hold[j]["rho"], hold[j]["e_S"],
+                                                                v, w, R1), 0.0)
+                                for k, j in enumerate(lockable)])
 
-    def within(j, S):
-        """S between the curves and the held force in the friction cone."""
-        return ca.logic_and(ca.logic_and(hold[j]["lo"] <= S, S <= hold[j]["hi"]),
-                            inside_cone(hold[j]["bend"] + S * hold[j]["e_S"], res[j]["n_b"], mu))
+        def within(j, S):
+            """S between the curves and the held force in the friction cone."""
+            return ca.logic_and(ca.logic_and(hold[j]["lo"] <= S, S <= hold[j]["hi"]),
+                                inside_cone(hold[j]["bend"] + S * hold[j]["e_S"],
+                                            res[j]["n_b"], mu))
 
-    if lockable:
         n_lk = len(lockable)
         mu_sym = ca.SX.sym("mu_lock", n_lk)
         lam_sym = ca.SX.sym("lam", n_lk)
         nu = ca.SX.sym("nu", 6)
         W = ca.diagcat(ca.DM.eye(3) / m, inertia_inv)          # M⁻¹ of (v, ω)
-
-        def any_of(flags):
-            out = flags[0]
-            for f in flags[1:]:
-                out = ca.logic_or(out, f)
-            return out
 
         def rattle(held, fixed, S_fixed):
             """v, ω, μ: the legs of ``held`` with zero stroke rate at the end (RATTLE), the
@@ -416,23 +436,14 @@ def build_model(scene: Scene) -> StepModel:
         _, _, mu1 = rattle(locked, off, off)
         keep = [ca.logic_and(locked[k], within(j, mu1[k])) for k, j in enumerate(lockable)]
         v_a, w_a, _ = rattle(keep, off, off)
-        # a foot in contact whose chord says its stroke reversed: the force that would hold
-        # its stroke, stuck where it was, after the velocities are projected onto the held
-        # strokes (the contact step's own answer carried the wrong branch's force, which may
-        # even have made it slip). Between the curves and in the cone: it locks. Beyond the
-        # curve of its stored branch: the reversal was not one (a chord of O(h³) after a
-        # release), it stays on that branch, stuck. Else: a direct switch.
-        cand, stored_S, end_loading = [], [], []
-        for k, j in enumerate(lockable):
-            r = res[j]
-            flip, ax = branch_flip(fns_of[j], p_of[j], rho0[j], feet[j]["force_body"], r["l"], h,
-                                   stored_loading[j])
-            end_loading.append(ca.if_else(locked0[j], release_loading[j],
-                                          ca.if_else(r["in_contact"], ax["new_loading"], 1.0)))
-            cand.append(ca.logic_and(ca.logic_and(ca.logic_not(locked0[j]), flip),
-                                     r["in_contact"]))
-            stored_S.append(ca.if_else(ax["stored_loading"], hold[j]["S_load"],
-                                       hold[j]["S_unload"]))
+        # a foot in contact whose chord says its stroke reversed (``cand``): the force that
+        # would hold its stroke, stuck where it was, after the velocities are projected onto
+        # the held strokes (the contact step's own answer carried the wrong branch's force,
+        # which may even have made it slip). Between the curves and in the cone: it locks.
+        # Beyond the curve of its stored branch: the reversal was not one (a chord of O(h³)
+        # after a release), it stays on that branch, stuck. Else: a direct switch.
+        stored_S = [ca.if_else(stored_loading[j], hold[j]["S_load"], hold[j]["S_unload"])
+                    for j in lockable]
         # a leg that RATTLE released alone is tried again with the others: two legs may
         # hold together where neither holds alone
         retry = [ca.logic_and(locked[k], ca.logic_not(keep[k])) for k in range(n_lk)]
@@ -455,15 +466,50 @@ def build_model(scene: Scene) -> StepModel:
         entered = any_of(accept)
         vel1, omega1 = ca.if_else(entered, v_p, v_b), ca.if_else(entered, w_p, w_b)
         S_end = ca.if_else(entered, lam2, mu2)
-        locked1 = {j: held[k] for k, j in enumerate(lockable)}
-        stuck1 = {j: ca.logic_or(held[k], stay[k]) for k, j in enumerate(lockable)}
-        S1 = {j: ca.if_else(stay[k], stored_S[k], S_end[k]) for k, j in enumerate(lockable)}
-        loading1 = {j: ca.if_else(stay[k], stored_loading[j], end_loading[k])
-                    for k, j in enumerate(lockable)}
-        acc1 = second_kick([stuck1[j] for j in lockable], [S1[j] for j in lockable])[2]
+        stuck = [ca.logic_or(held[k], stay[k]) for k in range(n_lk)]
+        S1 = [ca.if_else(stay[k], stored_S[k], S_end[k]) for k in range(n_lk)]
+        out = [vel1, omega1, second_kick(stuck, S1)[2]]
+        for k, j in enumerate(lockable):
+            out += [held[k], stuck[k], ca.if_else(stuck[k], hold[j]["rho"], res[j]["rho1"]),
+                    ca.if_else(stuck[k], hold[j]["bend"] + S1[k] * hold[j]["e_S"], res[j]["P1"]),
+                    ca.if_else(stay[k], stored_loading[j], end_loading[k])]
+        return out
+
+    if lockable:
+        # which legs may lock or turn: the chord's branch test on every lockable leg
+        cand, end_loading = [], []
+        for j in lockable:
+            r = res[j]
+            flip, ax = branch_flip(fns_of[j], p_of[j], rho0[j], feet[j]["force_body"], r["l"], h,
+                                   stored_loading[j])
+            end_loading.append(ca.if_else(locked0[j], release_loading[j],
+                                          ca.if_else(r["in_contact"], ax["new_loading"], 1.0)))
+            cand.append(ca.logic_and(ca.logic_and(ca.logic_not(locked0[j]), flip),
+                                     r["in_contact"]))
+        # the lock's work in a call that runs it only when a leg is locked or turns; in the
+        # other steps its values are those of the plain second kick
+        drift_in = [ca.SX.sym(name, n) for name, n in (("vel_h", 3), ("omega_h", 3),
+                                                       ("pos1", 3), ("quat1", 4))]
+        res_in = [{key: ca.SX.sym(f"{key}_{j}", 3) for key in
+                   (("P1", "rho1", "v_rel", "n_b") if j in lockable else ("P1", "rho1"))}
+                  for j in range(n_legs)]
+        cand_in, end_in = ca.SX.sym("cand", len(lockable)), ca.SX.sym("end_loading", len(lockable))
+        on = lock_phase(*drift_in, res_in, ca.vertsplit(cand_in), ca.vertsplit(end_in))
+        plain = second_kick_of(res_in, drift_in[0], drift_in[1], quat_to_rot(drift_in[3]), {})
+        off = list(plain([], [])[:3])
+        for k, j in enumerate(lockable):
+            off += [ca.SX(0), ca.SX(0), res_in[j]["rho1"], res_in[j]["P1"], end_in[k]]
+        out, gated["touchdown_lock_hold"] = skip_unless(
+            "touchdown_lock_hold", any_of(list(locked0.values()) + cand),
+            [X, p, h] + drift_in + [x for r in res_in for x in r.values()] + [cand_in, end_in],
+            [X, p, h, vel_h, omega_h, pos1, quat1]
+            + [res[j][key] for j, r in enumerate(res_in) for key in r]
+            + [ca.vertcat(*cand), ca.vertcat(*end_loading)], on, off)
+        vel1, omega1, acc1 = out[:3]
+        lock_out = {j: out[3 + 5 * k: 8 + 5 * k] for k, j in enumerate(lockable)}
     else:
-        vel1, omega1, acc1, _, _ = second_kick([], [])
-        locked1, stuck1, S1, loading1 = {}, {}, {}, {}
+        vel1, omega1, acc1, _, _ = second_kick_of(res, vel_h, omega_h, R1, {})([], [])
+        lock_out = {}
 
     new_feet, outputs = [], []
     switch_force, switch_torque = ca.DM.zeros(3), ca.DM.zeros(3)   # (B1)
@@ -472,13 +518,11 @@ def build_model(scene: Scene) -> StepModel:
         stays, rho1, foot_w, P1 = r["stays"], r["rho1"], r["foot_w"], r["P1"]
         contact = ca.if_else(stays, 1.0, 0.0)
         b1_active = ca.logic_and(r["in_contact"], stays)
-        if j in locked1:
-            lk, st = locked1[j], stuck1[j]
+        if j in lock_out:
+            lk, st, rho1, P1, loading1 = lock_out[j]
             stays = ca.logic_or(stays, st)
-            rho1 = ca.if_else(st, hold[j]["rho"], rho1)
-            foot_w = ca.if_else(st, hold[j]["foot_w"], foot_w)
-            P1 = ca.if_else(st, hold[j]["bend"] + S1[j] * hold[j]["e_S"], P1)
-            contact = ca.if_else(lk, LOCKED, ca.if_else(stays, ca.if_else(loading1[j], 1.0,
+            foot_w = ca.if_else(st, feet[j]["foot"], foot_w)
+            contact = ca.if_else(lk, LOCKED, ca.if_else(stays, ca.if_else(loading1, 1.0,
                                                                           UNLOADING), 0.0))
             b1_active = ca.logic_and(b1_active, ca.logic_not(ca.logic_or(st, locked0[j])))
         new_feet.append(dict(foot=foot_w, contact=contact, force_body=P1))
@@ -491,8 +535,8 @@ def build_model(scene: Scene) -> StepModel:
             switch_force, switch_torque = switch_force + dF, switch_torque + dT
 
         slipping = ca.dot(r["out"]["k"], r["out"]["k"]) > 0
-        if j in stuck1:
-            slipping = ca.logic_and(slipping, ca.logic_not(stuck1[j]))
+        if j in lock_out:
+            slipping = ca.logic_and(slipping, ca.logic_not(lock_out[j][1]))
         mode = ca.if_else(stays, ca.if_else(slipping, 2.0, 1.0),
                           ca.if_else(r["active"], 3.0, 0.0))
         geo = fns["strut_geometry"].call(dict(r=rho1))
@@ -513,7 +557,7 @@ def build_model(scene: Scene) -> StepModel:
     step = ca.Function("touchdown_step", [X, p, h], [x_next, y], ["x", "p", "dt"],
                        ["x_next", "y"], {"cse": True})
     return StepModel(step=step, scene=scene, nx=nx, ny=ny, np=params.size, param_names=names,
-                     params=params)
+                     params=params, gated=gated)
 
 
 # ---------------------------------------------------------------------------

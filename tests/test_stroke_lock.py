@@ -20,10 +20,12 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from symcushion.layout import output_layout, quat_to_rot_np, state_layout
+from symcushion.layout import quat_to_rot_np, state_layout
 from symcushion.scene import load_scene, read_toml, scene_from_dict
 from symcushion.simulate import build_model, initial_state, simulate
-from symcushion.stroke_lock import LOCKED, UNLOADING, axial_branches, newton_masked, solve_masked
+from symcushion import touchdown
+from symcushion.stroke_lock import (LOCKED, UNLOADING, axial_branches, newton_masked, skip_unless,
+                                     solve_masked)
 from symcushion.studies import event_order
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -169,7 +171,10 @@ def test_the_lock_adds_to_the_graph_only_where_a_leg_can_lock():
     scene = load_scene(ROOT / "studies" / "lander_slope.toml")
     branch = build_model(scene.with_(events="branch", slip="midpoint"))
     lock = build_model(scene.with_(events="lock", slip="midpoint"))
-    assert lock.graph_size()["instructions"] > branch.graph_size()["instructions"]
+    assert branch.graph_size()["gated"] == 0 and not branch.gated
+    assert set(lock.gated) == {"touchdown_lock_shake", "touchdown_lock_hold"}
+    # the lock's work is in calls that run only in the steps that need it
+    assert lock.graph_size()["gated"] > branch.graph_size()["instructions"]
 
 
 def _masked(n):
@@ -246,3 +251,45 @@ def test_gradient_through_a_lock(lock_runs):
             body = slice(0, xl.slice("angular_velocity").stop)
             np.testing.assert_allclose(J[body, col], fd[body], rtol=1e-5,
                                        atol=1e-5 * np.abs(fd[body]).max())
+
+
+def test_skip_unless_gives_the_list_its_flag_picks():
+    x, c = ca.SX.sym("x"), ca.SX.sym("c")
+    # `on` is NaN for x < 0: a branch-free if_else would carry it into the result
+    on, off = [ca.sqrt(x) * x, ca.SX(1.0)], [2 * x, ca.SX(0.0)]
+    (y, flag), f_on = skip_unless("gate_test", c > 0.5, [x], [x], on, off)
+    f = ca.Function("f", [x, c], [y, flag, ca.jacobian(y, x)])
+    assert f_on.n_instructions() > 0
+    for xv, cv, want, dwant in ((4.0, 1.0, 8.0, 3.0), (-4.0, 0.0, -8.0, 2.0),
+                                (4.0, 0.0, 8.0, 2.0)):
+        yv, fv, dv = (float(v) for v in f(xv, cv))
+        assert (yv, fv, dv) == (want, cv, dwant)
+
+
+def test_the_skipped_lock_gives_the_bits_of_the_lock_run_every_step(monkeypatch):
+    # the same scene with the lock's work inlined into every step, as a branch-free graph
+    scene = _scene("lock").with_(duration=0.3)
+    gated = build_model(scene)
+
+    def inline(name, flag, inputs, args, on, off):
+        return ca.substitute(on, inputs, args), ca.Function(name, inputs, on)
+
+    monkeypatch.setattr(touchdown, "skip_unless", inline)
+    every_step = build_model(scene)
+    assert every_step.step.n_instructions() > 2 * gated.step.n_instructions()
+    dt = 1e-3
+    flags, X = _flags(gated, scene, dt)
+    assert np.any(np.isclose(flags, LOCKED)) and not np.all(np.isclose(flags, LOCKED))
+    x0 = np.asarray(initial_state(scene)).ravel()
+    steps = round(scene.duration / dt)
+    a = gated.step.mapaccum(steps)(x0, gated.default_p, dt)
+    b = every_step.step.mapaccum(steps)(x0, every_step.default_p, dt)
+    for u, v in zip(a, b):
+        assert np.array_equal(np.asarray(u), np.asarray(v))
+    # and the Jacobian of 20 steps across the lock entry at 0.257 s
+    xs = ca.MX.sym("x", gated.nx)
+    k = round(0.25 / dt) - 1
+    jac = [np.asarray(ca.Function("J", [xs], [ca.jacobian(
+        m.step.mapaccum(20)(xs, m.default_p, dt)[0][:, -1], xs)])(X[:, k]))
+           for m in (gated, every_step)]
+    assert np.array_equal(*jac)
