@@ -16,7 +16,8 @@ from .measures import measures_function
 from .obstacles import ImplicitSurface, Plane, Sphere, Terrain
 from .scene import Body, Scene, load_scene, scene_from_dict, symmetric_legs
 from .strut import HingedStrut
-from .touchdown import StepModel, build_model, equilibrium_state, initial_state, stable_dt
+from .stability import stable_dt
+from .touchdown import StepModel, build_model, equilibrium_state, initial_state
 
 __all__ = ["Crushable", "Curve", "Linear", "PiecewiseLinear", "HingedStrut",
            "METHODS", "contact_step", "solve_contact",

@@ -29,7 +29,8 @@ import numpy as np
 from .obstacles import ImplicitSurface, Terrain
 from .scene import Scene
 from .layout import state_layout
-from .touchdown import build_model, initial_state, stable_dt
+from .stability import stable_dt
+from .touchdown import build_model, initial_state
 from .validation import SceneError
 
 __all__ = ["Finding", "PhysicsWarning", "check_scene", "preflight",

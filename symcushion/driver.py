@@ -21,8 +21,9 @@ from pathlib import Path
 import numpy as np
 
 from .layout import MODES, output_layout, state_layout
-from .touchdown import (MAX_HALVINGS, STABILITY_SAFETY, STEP_CRITERION_EPS, StepModel,
-                        build_model, initial_state, stable_dt)
+from .stability import STABILITY_SAFETY, stable_dt
+from .touchdown import (MAX_HALVINGS, STEP_CRITERION_EPS, StepModel, build_model,
+                        initial_state)
 from .validation import real
 from .trajectory import Trajectory, _assemble, initial_output, trajectory_from
 

@@ -14,9 +14,11 @@ import types
 from .driver import Trajectory, save, simulate, trajectory_from
 from .layout import (BODY_OUT, BODY_STATE, LEG_OUT, LEG_STATE, MODES, quat_exp, quat_mul,
                      quat_to_rot)
-from .touchdown import (MAX_HALVINGS, STABILITY_SAFETY, STEP_CRITERION_EPS, StepModel,
-                        build_model, equilibrium_state, initial_state, stable_dt)
-from .touchdown import _body_stiffness, _default_p, _leg_params, _rot_np  # noqa: F401
+from .stability import STABILITY_SAFETY, stable_dt
+from .stability import _body_stiffness  # noqa: F401
+from .touchdown import (MAX_HALVINGS, STEP_CRITERION_EPS, StepModel, build_model,
+                        equilibrium_state, initial_state)
+from .touchdown import _default_p, _leg_params, _rot_np  # noqa: F401
 
 __all__ = ["StepModel", "Trajectory", "build_model", "simulate", "initial_state",
            "equilibrium_state", "stable_dt", "trajectory_from", "save", "MODES",

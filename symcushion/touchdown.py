@@ -1,8 +1,9 @@
 """The touchdown step: the contact step of §1 inside a CasADi step Function.
 
 This module owns the step of a :class:`~symcushion.scene.Scene`
-(``touchdown_step``, its ``mapaccum`` rollout), its initial and equilibrium
-states and the explicit stability limit; the driver that runs it, with the
+(``touchdown_step``, its ``mapaccum`` rollout) and its initial and
+equilibrium states. The explicit stability limit of its body update lives
+in :mod:`symcushion.stability`; the driver that runs the step, with the
 paper's adaptive step criterion, and the trajectories it returns live in
 :mod:`symcushion.driver`.
 It receives the physics from elsewhere: the leg force P(r) and stiffness D_p
@@ -54,8 +55,8 @@ integrated by the trapezoid rule, an O(h²) local error once per touchdown.
 Stability: the body update is explicit in velocity, so a stiff leg limits the
 step to ω_max Δt < 2, ω_max² the largest eigenvalue of M⁻¹K (M the body's
 6×6 mass matrix, K the stiffness of its pose against feet held fixed).
-:func:`stable_dt` estimates that limit from D_p by AD; ``simulate(...,
-adaptive=True, stability=True)`` caps every step at :data:`STABILITY_SAFETY`
+``stability.stable_dt`` estimates that limit from D_p by AD; ``simulate(...,
+adaptive=True, stability=True)`` caps every step at ``stability.STABILITY_SAFETY``
 of it, or at a given fraction (opt-in, added for the stiff-leg hard case,
 docs/hard-cases.md; the default driver is unchanged). The paper's criterion
 1 − n_k·n_{k+1} < ε says nothing about this limit.
@@ -80,8 +81,8 @@ from .stroke_lock import (LOCKED, UNLOADING, any_of, axial_branches, bending_for
                           newton_masked, skip_unless, solve_masked, stroke_acceleration,
                           stroke_rate)
 
-__all__ = ["StepModel", "build_model", "initial_state", "equilibrium_state", "stable_dt",
-           "MODES", "STEP_CRITERION_EPS", "STABILITY_SAFETY", "MAX_HALVINGS",
+__all__ = ["StepModel", "build_model", "initial_state", "equilibrium_state",
+           "MODES", "STEP_CRITERION_EPS", "MAX_HALVINGS",
            "BODY_STATE", "LEG_STATE", "BODY_OUT", "LEG_OUT"]
 
 #: ε of the paper's step criterion 1 − n_k·n_{k+1} < ε (§3): a normal may
@@ -91,13 +92,6 @@ STEP_CRITERION_EPS = 3e-5
 #: Deepest halving of Δt by the adaptive driver (Δt/2¹⁰ at most).
 MAX_HALVINGS = 10
 
-#: Fraction of the explicit stability limit 2/ω_max (:func:`stable_dt`) that
-#: ``simulate(adaptive=True, stability=True)`` allows per step: ω_max Δt ≤ 1,
-#: where velocity Verlet keeps the stiffest mode stable with a frequency error
-#: of 5 % (cos ω̃Δt = 1 − (ωΔt)²/2) instead of sitting on the edge of
-#: instability (ω Δt = 2). Stable is not accurate: an impact whose energy
-#: passes through that mode needs a smaller fraction (docs/hard-cases.md).
-STABILITY_SAFETY = 0.5
 
 
 # ---------------------------------------------------------------------------
@@ -657,70 +651,6 @@ def equilibrium_state(scene: Scene, acceleration=(0.0, 0.0, 0.0), p=None,
     return state_layout(len(scene.legs)).pack(
         position=pos, velocity=np.zeros(3), attitude=quat, angular_velocity=np.zeros(3),
         foot=pts, contact=[1.0] * len(pts), force_body=forces)
-
-
-def _body_stiffness(model: StepModel) -> ca.Function:
-    """``body_stiffness(x, p) -> K``: 6×6 stiffness of the body pose (world frame).
-
-    K = −∂(ΣF_j, Στ_j)/∂(Δx, Δθ) at Δ = 0: the legs' force and moment on the
-    body when it is displaced by Δx and turned by the small world rotation Δθ
-    with every foot held where it is — a foot in contact at its stored point,
-    a free foot at its unloaded position (as if it touched down there now, so
-    that the estimate also covers the next touchdown). D_p enters by AD.
-    """
-    if model._body_stiffness is None:
-        scene = model.scene
-        _, offsets = _leg_params(scene)
-        X = ca.SX.sym("x", model.nx)
-        p = ca.SX.sym("p", model.np)
-        z = ca.SX.sym("z", 6)
-        xl = state_layout(model.n_legs)
-        pos, R = xl.get(X, "position"), quat_to_rot(xl.get(X, "attitude"))
-        R_z = quat_to_rot(quat_exp(z[3:6])) @ R
-        pos_z = pos + z[0:3]
-        wrench = ca.SX.zeros(6)
-        for j, leg in enumerate(scene.legs):
-            held = ca.if_else(xl.get(X, "contact", j) > 0.5, xl.get(X, "foot", j),
-                              pos + R @ ca.DM(leg.rest_foot))
-            rho = R_z.T @ (held - pos_z)
-            P = leg.functions()["strut_force"](rho, ca.DM.zeros(3),
-                                               p[offsets[j][0]:offsets[j][1]])
-            wrench = wrench + ca.vertcat(R_z @ P, R_z @ ca.cross(rho, P))
-        K = ca.substitute(-ca.jacobian(wrench, z), z, ca.DM.zeros(6))
-        model._body_stiffness = ca.Function("body_stiffness", [X, p], [K], ["x", "p"], ["K"])
-    return model._body_stiffness
-
-
-def stable_dt(model: StepModel, x, p=None) -> float:
-    """Explicit stability limit 2/ω_max of the body update at state ``x`` (s).
-
-    ω_max² is the largest |eigenvalue| of M⁻¹K, with M = diag(m I, R I_b Rᵀ)
-    the body's mass matrix and K its pose stiffness against feet held fixed
-    (:func:`_body_stiffness`). Velocity Verlet on ẍ = −ω²x is stable for
-    ω Δt < 2; a sliding foot is softer than a held one, so the estimate is
-    conservative in slip. Returns ``inf`` when no leg resists (K = 0).
-
-    Parameters
-    ----------
-    model : StepModel
-    x : array_like, shape (nx,)
-    p : array_like, optional
-        Leg parameters; default the scene's values.
-    """
-    x = np.asarray(x, dtype=float).ravel()
-    if x.shape != (model.nx,):
-        raise ValueError(f"`x` must have shape ({model.nx},), got {x.shape}.")
-    p = _default_p(model.scene) if p is None else np.asarray(p, dtype=float)
-    K = np.asarray(_body_stiffness(model)(x, p), dtype=float)
-    R = quat_to_rot_np(state_layout(model.n_legs).get(x, "attitude"))
-    body = model.scene.body
-    M_inv = np.zeros((6, 6))
-    M_inv[:3, :3] = np.eye(3) / body.mass
-    M_inv[3:, 3:] = R @ np.linalg.inv(body.inertia) @ R.T
-    omega2 = float(np.max(np.abs(np.linalg.eigvals(M_inv @ K))))
-    if not np.isfinite(omega2):
-        raise FloatingPointError(f"the body stiffness at this state is not finite: {K!r}.")
-    return np.inf if omega2 == 0 else 2.0 / np.sqrt(omega2)
 
 
 def _default_p(scene):
