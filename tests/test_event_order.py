@@ -172,3 +172,42 @@ def test_the_event_rows_run_with_the_midpoint_rule(events):
     assert [variant for name, variant, _, _ in rows if name == "lander_hop"] == [
         f"all events (midpoint, {events})"]
     assert all(scene.slip == "midpoint" for _, _, _, scene in rows)
+
+
+def _fake_run():
+    """Two legs, six samples: leg 0 reverses twice in contact, leg 1 loses contact once."""
+    from types import SimpleNamespace
+    stroke = np.array([[0, 0], [1, 1], [2, 2], [1, 2], [2, 1], [3, 2]], dtype=float)
+    contact = np.array([[1, 1], [1, 1], [1, 0], [1, 1], [1, 1], [1, 1]], dtype=float)
+    mode = np.array([[1, 1], [1, 1], [1, 0], [2, 1], [1, 1], [2, 1]])
+    foot = np.zeros((6, 2, 3))
+    foot[:, 0, 0] = [0, 0, 0, 1, 1, 3]
+    foot[:, 1, 0] = [0, 0, 10, 10, 10, 10]   # the jump out of contact is no path
+    return SimpleNamespace(stroke=stroke, contact=contact, mode=mode, foot=foot)
+
+
+def test_reversal_steps_mark_each_turn_of_the_stroke_in_contact():
+    turns = event_order.reversal_steps(_fake_run())
+    # leg 0: +1 +1 -1 +1 +1; leg 1: +1, out of contact, then -1 +1 (a fresh start)
+    np.testing.assert_array_equal(turns[:, 0], [False, False, True, True, False])
+    np.testing.assert_array_equal(turns[:, 1], [False, False, False, False, True])
+    assert event_order.leg_reversals(_fake_run()) == (2, 1)
+
+
+def test_slip_at_reversals_counts_the_turns_that_end_in_slip():
+    out = event_order.slip_at_reversals(_fake_run())
+    assert out["reversals"] == (2, 1)
+    assert out["reversal_slip"] == pytest.approx(1 / 3)     # leg 0's first turn of three
+    assert out["slip_share"] == pytest.approx(2 / 9)        # 2 slips in 9 contact samples
+    assert out["foot_path"] == pytest.approx((3.0, 0.0))
+
+
+def test_limits_text_gives_each_run_its_distance_from_both_limits():
+    rows = [dict(label=label, dt=dt, final=np.array([x, 0.0, 0.0]), slip_share=0.5,
+                 reversal_slip=0.25, reversals=(1, 2), foot_path=(0.1, 0.2))
+            for label, x0 in (("all events", 0.45), ("all events (midpoint, lock)", 0.44))
+            for dt, x in zip(event_order.LIMIT_DTS, (x0 + 2e-3, x0 + 1e-3, x0))]
+    text = event_order.limits_text(rows)
+    first = next(line for line in text.splitlines() if line.startswith("| all events | 0.0001"))
+    cells = [c.strip() for c in first.strip("|").split("|")]
+    assert cells[3] == "2.00" and cells[4] == "12.00"

@@ -51,19 +51,22 @@ def slip_fraction(model, scene, dt=SLIP_DT) -> float:
 HELD_STROKE = 1e-12
 
 
-def leg_reversals(traj) -> tuple:
-    """Per leg, the stroke changes with the other sign than the leg's previous change in
-    the same contact: one per turning point of the stroke (a branch switch or a lock).
+def reversal_steps(traj) -> np.ndarray:
+    """Which stroke changes are reversals: bool (steps, legs), entry k for the change
+    from sample k to k + 1.
 
-    Steps whose stroke changes by less than :data:`HELD_STROKE` (a locked stroke) are
-    skipped, so that a lock followed by a release the other way counts once.
+    A reversal is a stroke change with the other sign than the leg's previous
+    change in the same contact: one per turning point of the stroke (a branch
+    switch or a lock). Changes below :data:`HELD_STROKE` (a locked stroke) are
+    skipped, so that a lock followed by a release the other way counts once;
+    a new contact starts afresh.
     """
     stroke = np.asarray(traj.stroke)
     contact = np.asarray(traj.contact) > 0.5
     change = np.diff(stroke, axis=0)
-    out = []
+    out = np.zeros(change.shape, dtype=bool)
     for j in range(stroke.shape[1]):
-        count, last = 0, 0.0
+        last = 0.0
         for k in range(change.shape[0]):
             if not (contact[k, j] and contact[k + 1, j]):
                 last = 0.0                      # a new contact starts afresh
@@ -71,10 +74,14 @@ def leg_reversals(traj) -> tuple:
             if abs(change[k, j]) <= HELD_STROKE:
                 continue
             sign = np.sign(change[k, j])
-            count += bool(last and sign != last)
+            out[k, j] = bool(last and sign != last)
             last = sign
-        out.append(count)
-    return tuple(out)
+    return out
+
+
+def leg_reversals(traj) -> tuple:
+    """Per leg, the number of :func:`reversal_steps`: one per turning point of the stroke."""
+    return tuple(int(n) for n in reversal_steps(traj).sum(axis=0))
 
 
 def reversals(model, scene, dts=REVERSAL_DTS) -> list:
