@@ -1,14 +1,17 @@
 """Benchmark of the envelope study: cases per second, accuracy against Δt and the contact method.
 
-Throughput: the example study (studies/envelope_lander.toml: four legs, 2 s
-at Δt = 1 ms, the exact 'implicit' step, 2000 steps per case) on one thread,
+Throughput: the example study as its file sets it (studies/envelope_lander.toml:
+four legs, 2 s, the exact 'implicit' step with the midpoint slip rule and
+the stroke lock at Δt = 0.125 ms, 16,000 steps per case) on one thread,
 on every core (``map(batch, "thread", cores)``) and on a local Dask cluster
 of two single-threaded worker processes, and the same cases with the
 'robust' step on one thread for comparison; the time for 10,000 cases is
 extrapolated from each measured rate (or, with ``--full``, measured on every
 core).
 
-Accuracy (``--accuracy``): the same cases at Δt = 2 ms and 1 ms against
+Accuracy (``--accuracy``) and contact method (``--methods``) run the
+default step (:data:`DEFAULT_STEP`: backward-Euler slip, no lock) whatever
+the study file says. Accuracy: the same cases at Δt = 2 ms and 1 ms against
 0.5 ms — how often the class changes and how much the measures move.
 
 Contact method (``--methods``): the same cases (the study's seed) with the
@@ -24,10 +27,13 @@ Class changes (``--class-changes``): 2,000 cases at Δt = 1, 0.5 and
 absorbers' stroke lock — the share of cases whose class changes when Δt is
 halved.
 
+With ``--refine`` the midpoint rule with and without the lock at Δt = 0.5
+down to 0.0625 ms, with the CPU per case of each run.
+
 Each writes its section of docs/envelope.md (``symcushion.report``).
 
     python studies/bench_envelope.py [--n 1000] [--full] [--accuracy] [--methods]
-                                     [--class-changes]
+                                     [--class-changes [--refine]]
 """
 from __future__ import annotations
 
@@ -57,6 +63,11 @@ TARGET_CASES = 10_000
 #: Cases of the accuracy comparison and the Δt of the reference.
 ACCURACY_CASES = 400
 REFERENCE_DT = 5e-4
+#: The step of the accuracy and contact-method comparisons: the default slip
+#: rule without the stroke lock, whatever the study file says (those
+#: comparisons are of the contact step and Δt; "Class changes" compares the
+#: schemes).
+DEFAULT_STEP = dict(slip="backward", events="none")
 #: Variants of the contact-method comparison, (method, tangent_plane, Δt): the
 #: study's own first. 'robust' at 0.5 ms separates the method's effect from
 #: the step's; the two 0.25-ms runs check the reference and whether 'robust'
@@ -114,12 +125,14 @@ def throughput(n: int, full: bool) -> str:
     build_envelope(study.scene, CACHE, progress=True)
     # the 'robust' step on the same cases and Δt, one thread: the cost the exact step is
     # measured against (its classes differ, docs/envelope.md "Sensitivity")
-    robust = study.with_(scene=study.scene.with_(method="robust"))
+    # ('robust' has the backward-Euler slip rule only)
+    robust = study.with_(scene=study.scene.with_(method="robust", slip="backward"))
     build_envelope(robust.scene, CACHE, progress=True)
     rows = [measure(study, "one thread", threads=1),
             measure(study, f"all cores: map(batch, \"thread\", {cores})", threads=cores),
             measure(study, "local Dask cluster, 2 workers × 1 thread", dask=True, workers=2),
-            measure(robust, "'robust' step, one thread", threads=1)]
+            measure(robust, "'robust' step (its backward-Euler slip), one thread",
+                    threads=1)]
     if full:
         rows.append(measure(study.with_(n=TARGET_CASES), f"all cores, {TARGET_CASES:,} cases "
                                                          "(measured)", threads=cores))
@@ -166,6 +179,7 @@ def throughput(n: int, full: bool) -> str:
 
 def accuracy() -> str:
     base = load_study(STUDY).with_(n=ACCURACY_CASES, seed=11)
+    base = base.with_(scene=base.scene.with_(**DEFAULT_STEP))
     cond = sample_conditions(base)
     results = {}
     for dt in (2e-3, 1e-3, REFERENCE_DT):
@@ -192,7 +206,7 @@ def accuracy() -> str:
         lines.append(f"| {dt * 1e3:g} ms | " + " | ".join(cells) + " |")
     text = (
         f"Produced by `python studies/bench_envelope.py --accuracy`: {ACCURACY_CASES} cases "
-        "of the example study (seed 11) run at Δt = 2 ms, 1 ms and the reference "
+        "of the example study (seed 11) with the default step (backward-Euler slip, no stroke lock) run at Δt = 2 ms, 1 ms and the reference "
         f"{REFERENCE_DT * 1e3:g} ms. The last three columns are the median / 95th "
         f"percentile of the absolute difference from {REFERENCE_DT * 1e3:g} ms, over the "
         f"{int(np.sum(upright))} cases whose reference tilt stays below 60° (a lander "
@@ -207,6 +221,11 @@ CHANGE_DTS = (1e-3, 5e-4, 2.5e-4)
 #: (slip rule, event rule) of the class-change runs: the default step, the
 #: midpoint slip rule, and that with the absorbers' stroke lock.
 SCHEMES = (("backward", "none"), ("midpoint", "none"), ("midpoint", "lock"))
+#: Δt and schemes of the refined comparison (``--class-changes --refine``):
+#: does the share of changes fall below REFINE_TARGET at a smaller step?
+REFINE_DTS = (5e-4, 2.5e-4, 1.25e-4, 6.25e-5)
+REFINE_SCHEMES = (("midpoint", "none"), ("midpoint", "lock"))
+REFINE_TARGET = 0.005
 #: Class pairs listed per comparison, the most frequent first.
 CHANGE_PAIRS = 5
 
@@ -216,44 +235,64 @@ def _scheme_label(scheme) -> str:
     return slip if events == "none" else f"{slip}, {events}"
 
 
-def class_changes(n: int = CHANGE_CASES) -> str:
-    """Share of cases whose class changes when Δt is halved, for each scheme of SCHEMES."""
+def class_changes(n: int = CHANGE_CASES, dts=CHANGE_DTS, schemes=SCHEMES, *,
+                  cost: bool = False) -> str:
+    """Share of cases whose class changes when Δt is halved, for each scheme of `schemes`.
+
+    With `cost`, also the wall time and the CPU per case of each run (the
+    runs alone: the library is built, or loaded from the cache, first).
+    """
     base = load_study(STUDY).with_(n=n)
     cond = sample_conditions(base)
-    classes = {}
-    for scheme in SCHEMES:
+    threads = os.cpu_count() or 1
+    classes, timing = {}, {}
+    for scheme in schemes:
         slip, events = scheme
-        for dt in CHANGE_DTS:
+        for dt in dts:
             study = base.with_(scene=base.scene.with_(dt=dt, slip=slip, events=events))
             started = time.perf_counter()
-            r = evaluate(study, cond, threads=os.cpu_count() or 1, cache_dir=CACHE,
-                         progress=True)
+            build_envelope(study.scene, CACHE, progress=True)
+            cpu, wall = _cpu(), time.perf_counter()
+            r = evaluate(study, cond, threads=threads, cache_dir=CACHE, progress=True)
+            cpu, wall = _cpu() - cpu, time.perf_counter() - wall
             classes[scheme, dt] = r["class"]
-            print(f"{_scheme_label(scheme)}, dt = {dt:g}: {time.perf_counter() - started:.1f} s",
-                  flush=True)
+            timing[scheme, dt] = (wall, cpu / n)
+            print(f"{_scheme_label(scheme)}, dt = {dt:g}: {wall:.1f} s of run, "
+                  f"{1e3 * cpu / n:.1f} ms CPU per case ({time.perf_counter() - started:.1f} s "
+                  "with the build)", flush=True)
     lines = ["| slip rule, events | " + " | ".join(
-        f"{a * 1e3:g} → {b * 1e3:g} ms" for a, b in zip(CHANGE_DTS, CHANGE_DTS[1:]))
-        + " | P(stable) at " + " / ".join(f"{dt * 1e3:g}" for dt in CHANGE_DTS) + " ms |",
-        "|---|" + "---:|" * (len(CHANGE_DTS) - 1) + "---|"]
-    for scheme in SCHEMES:
+        f"{a * 1e3:g} → {b * 1e3:g} ms" for a, b in zip(dts, dts[1:]))
+        + " | P(stable) at " + " / ".join(f"{dt * 1e3:g}" for dt in dts) + " ms |"
+        + (" CPU ms per case at " + " / ".join(f"{dt * 1e3:g}" for dt in dts) + " ms |"
+           if cost else ""),
+        "|---|" + "---:|" * (len(dts) - 1) + "---|" + ("---|" if cost else "")]
+    for scheme in schemes:
         cells = [f"{np.mean(classes[scheme, a] != classes[scheme, b]):.2%}"
-                 for a, b in zip(CHANGE_DTS, CHANGE_DTS[1:])]
+                 for a, b in zip(dts, dts[1:])]
         cells.append(" / ".join(f"{np.mean(classes[scheme, dt] == 'stable'):.3f}"
-                                for dt in CHANGE_DTS))
+                                for dt in dts))
+        if cost:
+            cells.append(" / ".join(f"{1e3 * timing[scheme, dt][1]:.1f}" for dt in dts))
         lines.append(f"| {_scheme_label(scheme)} | " + " | ".join(cells) + " |")
     pairs = []
-    for scheme in SCHEMES:
-        for a, b in zip(CHANGE_DTS, CHANGE_DTS[1:]):
+    for scheme in schemes:
+        for a, b in zip(dts, dts[1:]):
             moves = Counter(f"{x} → {y}" for x, y in zip(classes[scheme, a], classes[scheme, b])
                             if x != y)
             pairs.append(f"* {_scheme_label(scheme)}, {a * 1e3:g} → {b * 1e3:g} ms: " + ", ".join(
                 f"{k} {v}" for k, v in moves.most_common(CHANGE_PAIRS)))
     lines += ["", "The most frequent changes (class at Δt → class at Δt/2, cases):", ""] + pairs
-    return (f"Produced by `python studies/bench_envelope.py --class-changes`: the first {n:,} "
+    command = "--class-changes --refine" if cost else "--class-changes"
+    text = (f"Produced by `python studies/bench_envelope.py {command}`: the first {n:,} "
             f"cases of the example study (its seed, {base.seed}), exact contact step, run at "
-            "Δt = " + ", ".join(f"{dt * 1e3:g}" for dt in CHANGE_DTS) + " ms with the default "
-            "step, the midpoint slip rule, and that with the stroke lock (`events = \"lock\"`); "
-            "the share of cases whose class changes when Δt is halved.\n\n" + "\n".join(lines))
+            "Δt = " + ", ".join(f"{dt * 1e3:g}" for dt in dts) + " ms with the schemes (slip rule, "
+            "events) " + "; ".join(f"'{_scheme_label(s)}'" for s in schemes)
+            + "; the share of cases whose class changes when Δt is halved.")
+    if cost:
+        text += (f" CPU per case: this process's CPU time over the run on {threads} threads "
+                 "(sampling, initial states and classification included, the build excluded), "
+                 f"load average {os.getloadavg()[0]:.1f} at the end.")
+    return text + "\n\n" + "\n".join(lines)
 
 
 def _variant_label(variant) -> str:
@@ -274,7 +313,8 @@ def _run_variant(base, variant, cases: dict, marginal: dict, threads: int) -> tu
     """Compile (or load) one variant; run the cases (timed: CPU of the run alone) and the
     marginal case; return both classifications."""
     method, plane, dt = variant
-    study = base.with_(scene=base.scene.with_(method=method, tangent_plane=plane, dt=dt))
+    study = base.with_(scene=base.scene.with_(method=method, tangent_plane=plane, dt=dt,
+                                              **DEFAULT_STEP))
     started = time.perf_counter()
     library = build_envelope(study.scene, CACHE, progress=True)
     build = time.perf_counter() - started
@@ -509,11 +549,18 @@ def main(argv=None) -> None:
     parser.add_argument("--class-changes", action="store_true",
                         help="share of classes that change when Δt is halved, per scheme of the step, "
                              "instead")
+    parser.add_argument("--refine", action="store_true",
+                        help="with --class-changes: the midpoint rule with and without the lock at "
+                             "Δt = 0.5 ms down to 0.0625 ms, with the CPU per case")
     parser.add_argument("--threads", type=int, default=os.cpu_count() or 1,
                         help="threads of --methods (default every core)")
     args = parser.parse_args(argv)
     if args.methods:
         report.write_section(DOCS, METHODS_HEADING, methods(args.threads),
+                             title="# Touchdown stability envelope")
+    elif args.class_changes and args.refine:
+        report.write_section(DOCS, "Class changes at smaller Δt",
+                             class_changes(CHANGE_CASES, REFINE_DTS, REFINE_SCHEMES, cost=True),
                              title="# Touchdown stability envelope")
     elif args.class_changes:
         report.write_section(DOCS, "Class changes with Δt and the slip rule", class_changes(),

@@ -252,7 +252,8 @@ def _cmd_envelope(args):
                f"a local Dask cluster of {args.workers} workers" if args.dask else
                f"{args.threads or 'all'} thread(s)")
     print(f"{study.name}: {study.n:,} cases ({study.method}, seed {study.seed}), "
-          f"{len(study.scene.legs)} legs, method {study.scene.method}, {study.scene.steps} "
+          f"{len(study.scene.legs)} legs, method {study.scene.method} (slip {study.scene.slip}, "
+          f"events {study.scene.events}), {study.scene.steps} "
           f"steps of {study.scene.dt:g} s; {backend}", flush=True)
     try:
         result = run_envelope(study, out, threads=args.threads, dask=args.dask,

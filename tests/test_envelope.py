@@ -10,6 +10,7 @@ class the physics demands; bad study files name the bad field.
 from __future__ import annotations
 
 import copy
+import json
 import math
 
 import numpy as np
@@ -49,8 +50,10 @@ def study(raw):
     data["scene"]["duration"] = SHORT_DURATION
     # the machinery under test is the same for every contact step: the tests
     # use the cheap one (compiles in seconds) rather than the example's
-    # implicit step at 1 ms (docs/envelope.md, "Method and Δt")
-    data["scene"].update(method="robust", dt=2e-3, tangent_plane="start")
+    # implicit step with the stroke lock at 0.125 ms (docs/envelope.md,
+    # "Method and Δt")
+    data["scene"].update(method="robust", dt=2e-3, tangent_plane="start", slip="backward",
+                         events="none")
     data["sampling"]["n"] = CASES
     return ev.study_from_dict(data, str(LANDER))
 
@@ -197,8 +200,11 @@ def test_threaded_run_writes_every_case_and_the_figures(study, library, cache, t
     for name in list(ev.VARIABLES) + ["max_stroke", "peak_decel", "max_tilt_deg",
                                       "margin_tip_over", "margin_stroke"]:
         assert name in header
-    summary = (tmp_path / "summary.json").read_text()
-    assert '"p_stable"' in summary
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert "p_stable" in summary
+    # the scheme of the step is recorded with the results it gave
+    assert {k: summary["scene"][k] for k in ("method", "slip", "events", "dt")} == dict(
+        method="robust", slip="backward", events="none", dt=2e-3)
     ps = result.p_stable()
     assert ps["low"] <= ps["p"] <= ps["high"]
     for kind in ("boundary", "pstable", "distributions"):
@@ -367,7 +373,8 @@ def test_mu_sampled_continuously_from_one_library(raw, study, cache):
     """A uniform μ range runs on one compiled library, μ entering through p; each
     case equals the same touchdown evaluated alone with its μ."""
     data = copy.deepcopy(raw)
-    data["scene"].update(duration=0.3, method="robust", dt=2e-3, tangent_plane="start")
+    data["scene"].update(duration=0.3, method="robust", dt=2e-3, tangent_plane="start",
+                         slip="backward", events="none")
     data["sampling"]["n"] = 16
     data["ranges"]["mu"] = [0.1, 0.9]
     continuous = ev.study_from_dict(data, "mu_uniform.toml")

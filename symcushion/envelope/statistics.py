@@ -125,7 +125,8 @@ class EnvelopeResult:
         return {
             "study": st.name, "description": st.description, "source": st.source,
             "cases": self.n, "seed": st.seed, "sampling": st.method,
-            "scene": {"method": st.scene.method, "dt": st.scene.dt,
+            "scene": {"method": st.scene.method, "slip": st.scene.slip,
+                      "events": st.scene.events, "dt": st.scene.dt,
                       "duration": st.scene.duration, "legs": len(st.scene.legs),
                       "mass": st.scene.body.mass},
             "ranges": {k: r.describe() for k, r in st.ranges.items()},
