@@ -405,3 +405,39 @@ def test_wilson_interval_is_the_closed_form():
         ev.wilson_interval(5, 3)
     with pytest.raises(ValueError, match="`confidence`"):
         ev.wilson_interval(1, 3, confidence=95)
+
+
+def test_progress_off_a_terminal_is_plain_lines(monkeypatch):
+    """Off a terminal (a log, CI) progress comes as whole lines, one per interval and
+    one at the end; on a terminal tqdm draws its bar instead."""
+    import io
+    from symcushion.envelope import runner
+
+    stream = io.StringIO()                        # not a terminal
+    monkeypatch.setattr(runner, "PROGRESS_LOG_INTERVAL", 0.0)
+    bar = runner._Progress(300, True, "demo", stream=stream)
+    for _ in range(3):
+        bar.update(100)
+    lines = stream.getvalue().splitlines()
+    assert len(lines) == 3 and "\r" not in stream.getvalue()
+    assert lines[-1].startswith("  demo: 300/300 cases,") and lines[-1].endswith("0.0 min left")
+
+    quiet = io.StringIO()
+    bar = runner._Progress(300, False, "demo", stream=quiet)
+    bar.update(300)
+    assert quiet.getvalue() == ""
+
+
+def test_progress_on_a_terminal_is_the_bar_only(monkeypatch):
+    import io
+    from symcushion.envelope import runner
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    stream = Terminal()
+    monkeypatch.setattr(runner, "PROGRESS_LOG_INTERVAL", 0.0)
+    bar = runner._Progress(200, True, "demo", stream=stream)
+    bar.update(200)
+    assert "200/200" in stream.getvalue() and "cases/s," not in stream.getvalue()

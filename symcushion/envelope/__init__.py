@@ -23,7 +23,7 @@ from .cases import (SUMMARY, DECEL_FILTER_TIME, initial_states, envelope_functio
 from .build import DEFAULT_CACHE, build_envelope, run_batch
 from .classify import CLASSES, classify
 from .statistics import CONFIDENCE, wilson_interval, EnvelopeResult
-from .runner import PROGRESS_INTERVAL, run_envelope, evaluate, write_result
+from .runner import PROGRESS_INTERVAL, PROGRESS_LOG_INTERVAL, run_envelope, evaluate, write_result
 from .plots import LOGISTIC_RIDGE, plot_envelope
 from .runner import _libraries  # noqa: F401  (tests check one library serves every μ)
 from ..layout import BODY_STATE, LEG_STATE  # noqa: F401  (kept importable from here)
@@ -35,5 +35,5 @@ __all__ = ["VARIABLES", "MAX_SLOPE_DEG", "DEFAULT_BATCH", "DEFAULT_CLEARANCE", "
            "envelope_function", "case_params", "reach", "apply_design", "DEFAULT_CACHE",
            "build_envelope", "run_batch",
            "CLASSES", "classify", "CONFIDENCE", "wilson_interval", "EnvelopeResult",
-           "PROGRESS_INTERVAL", "run_envelope", "evaluate", "write_result", "LOGISTIC_RIDGE",
+           "PROGRESS_INTERVAL", "PROGRESS_LOG_INTERVAL", "run_envelope", "evaluate", "write_result", "LOGISTIC_RIDGE",
            "plot_envelope"]

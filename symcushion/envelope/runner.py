@@ -24,32 +24,48 @@ from .sampling import sample_conditions
 from .statistics import EnvelopeResult
 from .study import _check_counts, _DEFAULTS, EnvelopeStudy, VARIABLES
 
-__all__ = ["PROGRESS_INTERVAL", "run_envelope", "evaluate", "write_result"]
+__all__ = ["PROGRESS_INTERVAL", "PROGRESS_LOG_INTERVAL", "run_envelope", "evaluate", "write_result"]
 
-#: Seconds between progress lines.
+#: Seconds between updates of the progress bar on a terminal.
 PROGRESS_INTERVAL = 0.5
+#: Seconds between plain progress lines when stderr is not a terminal (a log
+#: file, CI): the example study runs for minutes, and a bar that tqdm hides
+#: there would leave its log silent until the end.
+PROGRESS_LOG_INTERVAL = 30.0
 
 
 class _Progress:
-    """A progress bar on stderr (tqdm): cases done, cases per second, time left.
+    """Progress on stderr: cases done, cases per second, time left.
 
-    tqdm rather than a hand-written line: it is well kept, estimates the rate
-    and the time left, and stays silent when stderr is not a terminal.
+    On a terminal a tqdm bar (well kept, estimates the rate and the time
+    left); elsewhere a plain line every :data:`PROGRESS_LOG_INTERVAL` seconds
+    and one at the end, which a log keeps one per line.
     """
 
-    def __init__(self, total: int, enabled: bool, label: str):
+    def __init__(self, total: int, enabled: bool, label: str, stream=None):
         from tqdm.auto import tqdm
 
-        self.total, self.done = total, 0
-        self.started = time.perf_counter()
-        self.bar = tqdm(total=total, unit="case", desc=f"  {label}", file=sys.stderr,
+        self.stream = sys.stderr if stream is None else stream
+        self.total, self.done, self.label = total, 0, label
+        self.started = self.last_line = time.perf_counter()
+        terminal = bool(getattr(self.stream, "isatty", lambda: False)())
+        self.lines = enabled and not terminal
+        self.bar = tqdm(total=total, unit="case", desc=f"  {label}", file=self.stream,
                         mininterval=PROGRESS_INTERVAL, leave=True,
-                        disable=None if enabled else True)
+                        disable=not (enabled and terminal))
 
     def update(self, count: int):
         self.done += count
         self.bar.update(count)
-        if self.done >= self.total:
+        now = time.perf_counter()
+        finished = self.done >= self.total
+        if self.lines and (finished or now - self.last_line >= PROGRESS_LOG_INTERVAL):
+            self.last_line = now
+            rate = self.done / max(now - self.started, 1e-9)
+            left = (self.total - self.done) / rate if rate > 0 else float("inf")
+            print(f"  {self.label}: {self.done:,}/{self.total:,} cases, {rate:.1f} cases/s, "
+                  f"{left / 60:.1f} min left", file=self.stream, flush=True)
+        if finished:
             self.bar.close()
 
 
