@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .characteristics import Crushable, Curve, Linear, PiecewiseLinear
+from .characteristics import KINK_WIDTH, RATE_WIDTH, Crushable, Curve, Linear, PiecewiseLinear
 from .contact import METHODS  # re-exported: scenes name their contact step
 from .obstacles import ImplicitSurface, Obstacle, Plane, Sphere, Terrain
 from .strut import HingedStrut
@@ -239,7 +239,7 @@ _Table = Table
 _CURVES = ("linear", "piecewise", "crushable")
 #: Every key of an element table, for "did you mean" on a misspelt one.
 _CURVE_KEYS = ("type", "smooth", "tunable", "unloading", "stiffness", "preload", "x", "f",
-               "crush_force", "plateau_slope")
+               "crush_force", "plateau_slope", "kink_width", "rate_width")
 
 
 def _build(t: Table, build, *args, **kwargs):
@@ -263,6 +263,12 @@ def _curve(table, allow_unloading=True) -> Curve:
     kind = table.get("type", kind="string", choices=_CURVES)
     options = dict(smooth=table.get("smooth", False, kind="bool"),
                    tunable=table.get("tunable", False, kind="bool"))
+    for width, default in (("kink_width", KINK_WIDTH), ("rate_width", RATE_WIDTH)):
+        # the widths of the rounding act only on a smooth curve: said, not ignored
+        if table.has(width) and options["smooth"] is False:
+            table.fail(f"`{table.path}.{width}` acts only on a smooth curve; add "
+                       f"`smooth = true` to `{table.path}` or remove `{width}`.")
+        options[width] = table.get(width, default, positive=True)
     if allow_unloading and table.has("unloading"):
         options["unloading"] = _curve(table.get("unloading", kind="table"), allow_unloading=False)
     if kind == "linear":

@@ -276,3 +276,30 @@ def test_validators_accept_numpy_scalars_and_normalise_huge_directions():
     np.testing.assert_allclose(direction("en", [1e300, 0.0, 1e300]),
                                [2 ** -0.5, 0.0, 2 ** -0.5], rtol=1e-15)
     assert vector("x", [[1.0, 2.0]], (1, None)).shape == (1, 2)
+
+
+def _lander_slope():
+    return tomllib.loads((ROOT / "studies" / "lander_slope.toml").read_text())
+
+
+def test_rate_width_reaches_the_smooth_curve():
+    data = _lander_slope()
+    data["legs"]["S"].update(smooth=True, rate_width=1e-5, kink_width=2e-4)
+    scene = scene_from_dict(data, "smooth.toml")
+    S = next(el.curve for el in scene.legs[0].elements if el.name == "S")
+    assert (S.smooth, S.rate_width, S.kink_width) == (True, 1e-5, 2e-4)
+    assert S.unloading.smooth and S.unloading.kink_width == 2e-4
+
+
+@pytest.mark.parametrize("width", ["rate_width", "kink_width"])
+def test_a_width_without_smooth_is_an_error_not_ignored(width):
+    data = _lander_slope()
+    data["legs"]["S"][width] = 1e-5
+    text = load_error(data)
+    assert f"`legs.S.{width}` acts only on a smooth curve" in text and "smooth = true" in text
+
+
+def test_a_non_positive_rate_width_is_rejected():
+    data = _lander_slope()
+    data["legs"]["S"].update(smooth=True, rate_width=0.0)
+    assert "`legs.S.rate_width` = 0.0 is invalid; allowed: a positive number" in load_error(data)
