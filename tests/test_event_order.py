@@ -211,3 +211,30 @@ def test_limits_text_gives_each_run_its_distance_from_both_limits():
     first = next(line for line in text.splitlines() if line.startswith("| all events | 0.0001"))
     cells = [c.strip() for c in first.strip("|").split("|")]
     assert cells[3] == "2.00" and cells[4] == "12.00"
+
+
+def test_the_regularised_reference_blends_the_absorber_branches():
+    scene = event_order.regularized_scene("flat", 1e-5)
+    S = next(el.curve for el in scene.legs[0].elements if el.name == "S")
+    assert S.smooth and S.rate_width == 1e-5 and S.unloading is not None
+    assert scene.events == "none" and scene.slip == "backward"
+    assert scene.name != event_order.regularized_scene("flat", 1e-6).name   # builds apart
+    # at a turning stroke the blend sits between the curves, not on either
+    x = -0.1
+    mid = float(S.force(x, 0.0))
+    assert float(S.force(x, -1.0)) < mid < float(S.force(x, 1.0)) or \
+        float(S.force(x, -1.0)) > mid > float(S.force(x, 1.0))
+
+
+def test_oracle_text_measures_every_run_from_the_finest_regularised_one():
+    rows = []
+    for variant in event_order.ORACLE_VARIANTS:
+        for scheme, w, dt, x in (("default", np.nan, 1e-6, 0.45), ("lock", np.nan, 1e-6, 0.44),
+                                 ("regularised", 1e-5, 1e-6, 0.388),
+                                 ("regularised", 1e-6, 3e-7, 0.387)):
+            rows.append(dict(variant=variant, scheme=scheme, rate_width=w, dt=dt,
+                             final=np.array([x, 0.0, 0.0])))
+    text = event_order.oracle_text(rows)
+    line = next(l for l in text.splitlines() if l.startswith("| flat | default"))
+    assert line.rstrip(" |").endswith("63.00")
+    assert sum(l.rstrip(" |").endswith("| 0.00") for l in text.splitlines()) == 3

@@ -51,9 +51,10 @@ shared 2-core machine with other jobs running, plus gcc the first time;
 builds are cached in ``build/event_order/``); ``--controls`` runs only the
 control runs (about 4 min), ``--cost`` only the interleaved timing of the
 located switch against its peers (:func:`cost_check`, section "Events:
-cost", about 1 min), ``--limits`` only the default step and the
-stroke lock on the slope lander down to Δt = 1e-6 s (:func:`limits`,
-section "Events: two limits on the slope", about 2 min), ``--only TEXT`` only the cases whose scene or variant
+cost", about 1 min), ``--limits`` only the default step, the stroke lock and the
+regularised branch switch on the slope lander down to Δt = 1e-6 s
+(:func:`limit_runs` and :func:`oracle`, section "Events: two limits on the
+slope", about 12 min), ``--only TEXT`` only the cases whose scene or variant
 contains TEXT (no output written).
 """
 from __future__ import annotations
@@ -68,7 +69,9 @@ from .controls import (CONTROLS, CONTROL_DTS, CONTROL_DT_REF, CONTROL_DURATION, 
                        controls_text, cost_check, cost_text, final_state,
                        settled, switch_case, switch_control)
 from .figure import LINES, PANELS, STYLE, plot
-from .limits import LIMIT_DTS, LIMIT_SCHEMES, limits, limits_text, slip_at_reversals
+from .limits import (LIMIT_DTS, LIMIT_SCHEMES, ORACLE_DT, ORACLE_RUNS, ORACLE_VARIANTS,
+                     limit_runs, limits_text, oracle, oracle_text, regularized_scene,
+                     slip_at_reversals)
 from .main import main
 from .runs import (at_step, final_error, leg_reversals, orders, reversal_steps, reversals, run_case,
                    slip_fraction, write_csv)
@@ -78,12 +81,14 @@ __all__ = [
     "BRANCH_VARIANTS", "BUILD", "CHUNK", "COLUMNS", "CONTROLS", "CONTROL_DTS", "CONTROL_DT_REF",
     "CONTROL_DURATION", "CONTROL_STIFFNESS", "COST_DT", "COST_ROUNDS", "DOC", "DT_CHECK",
     "DT_GRID", "DT_REF", "ERROR_KEYS", "EVENT_OPTIONS", "FIGURES", "FLAT_GAP", "LIMIT_DTS",
-    "LIMIT_SCHEMES", "LINES", "PANELS", "REVERSAL_DTS",
+    "LIMIT_SCHEMES", "LINES", "ORACLE_DT", "ORACLE_RUNS", "ORACLE_VARIANTS", "PANELS", "REVERSAL_DTS",
     "ROOT", "SETTLE_DT", "SLIP_DT", "SLIP_RULES", "STARTS", "STICK_MU", "STUDIES", "STYLE",
     "SWITCH_DTS", "SWITCH_KICK", "SWITCH_REF", "VARIANTS", "at_step", "case_label",
     "control_scene", "controls", "controls_text", "cost_check", "cost_ratios", "cost_text",
-    "final_error", "final_state", "leg_reversals", "limits", "limits_text", "main", "orders", "plot", "report_text",
-    "reversal_steps", "reversals", "run_case", "scenes", "settled", "slip_at_reversals",
+    "final_error", "final_state", "leg_reversals", "limit_runs", "limits_text", "main", "oracle",
+    "oracle_text", "orders", "plot", "report_text",
+    "regularized_scene", "reversal_steps", "reversals", "run_case", "scenes", "settled",
+    "slip_at_reversals",
     "slip_fraction", "switch_case",
     "switch_control", "write_csv",
 ]

@@ -1,12 +1,14 @@
-"""The two limits of the 10° lander: the default step and the stroke lock as Δt → 0.
+"""The limits of the slope lander as Δt → 0: the default step, the stroke lock and a reference.
 
 Owns the runs of ``--limits``: the lander of ``studies/lander_slope.toml``
 with the default step and with the midpoint rule and the stroke lock, at
 Δt from :data:`LIMIT_DTS` down to 1e-6 s, and what each run says about
 where it converges: the final position of the centre of mass, the slipping
 share of the contact samples, the share of the stroke reversals at which
-the foot slips, and each foot's sliding path. It must not fit orders or
-write files (``main`` writes its section).
+the foot slips, and each foot's sliding path (:func:`limit_runs`); and the
+reference both are compared with, the same lander with its absorbers'
+branch switch regularised and resolved (:func:`oracle`). It must not fit
+orders or write files (``main`` writes its section).
 
 Why: the two schemes converge to final positions a centimetre apart. The
 default step takes the branch of each step from the sign of its stroke
@@ -15,17 +17,21 @@ alternates between them step after step (docs/speed-vs-error.md, "The
 stroke lock on the lander"); its foot then sees a force that jumps by the
 gap between the curves at every step, however small the step, and
 Coulomb's law responds to each half of that alternation rather than to its
-mean. These runs measure where each scheme converges, which legs keep
-alternating, and how far the feet slide on the way.
+mean. The lock holds such a leg only while its foot sticks. The
+regularised switch (``smooth = true`` with a small ``rate_width``) holds
+every turning stroke, sliding foot or not, once its step resolves the blend:
+as the width falls it tends to the Filippov closure of (2.1), the motion
+both schemes approximate.
 """
 from __future__ import annotations
 
 import numpy as np
 
 from symcushion.codegen import compiled_model
+from symcushion.scene import read_toml, scene_from_dict
 from symcushion.simulate import simulate
 
-from .cases import BUILD, CHUNK, case_label, scenes
+from .cases import BUILD, CHUNK, STUDIES, _variant_data, case_label, scenes
 from .runs import at_step, reversal_steps
 
 #: Δt of the limit runs (s): two decades below the study's grid and down to
@@ -36,6 +42,24 @@ LIMIT_DTS = (1e-4, 1e-5, 1e-6)
 LIMIT_SCHEMES = (("backward", "none"), ("midpoint", "lock"))
 #: The mode of a sliding foot in a trajectory (``Trajectory.mode``).
 SLIP_MODE = 2
+#: The reference for the held stroke: the absorber's branch switch regularised
+#: (``smooth = true``, the blend 0.5(1 + tanh(x·ẋ/w)) of its two curves) with
+#: these (rate_width w in m²/s, Δt in s). As w → 0 the blend holds a turning
+#: stroke at any force between the curves, the Filippov closure, with or
+#: without a sliding foot; each w needs a Δt that resolves its blend (the
+#: stroke rate's scale w/|x| against the leg's force gap and mass).
+ORACLE_RUNS = ((1e-5, 1e-6), (1e-6, 3e-7))
+#: Variants of the lander compared with that reference: feet that stick,
+#: some sliding feet (level ground, μ = 0.4), and the 10° slope.
+ORACLE_VARIANTS = ("stick, flat", "flat", "all events")
+#: Δt of the default step and the lock in that comparison (s).
+ORACLE_DT = 1e-6
+#: The sentence that opens the comparison's table.
+ORACLE_INTRO = ("The reference for the held stroke: the same lander with its absorbers' "
+                "branch switch regularised (`smooth = true`, the blend 0.5(1 + tanh(x·ẋ/w)) "
+                "of the two curves, `rate_width` w; default step), at a Δt that resolves the "
+                "blend, against the default step and the lock at 1e-6 s. Distances are from "
+                "the finest regularised run of each variant.")
 
 
 def slip_at_reversals(traj) -> dict:
@@ -61,7 +85,7 @@ def slip_at_reversals(traj) -> dict:
     )
 
 
-def limits(progress=print) -> list:
+def limit_runs(progress=print) -> list:
     """One row per scheme of :data:`LIMIT_SCHEMES` and Δt of :data:`LIMIT_DTS`.
 
     Each row: ``label``, ``dt``, ``final`` (the centre of mass at the end, m,
@@ -83,8 +107,62 @@ def limits(progress=print) -> list:
     return rows
 
 
+def regularized_scene(variant: str, rate_width: float):
+    """The lander of ``studies/lander_slope.toml`` with the events of ``variant`` removed
+    (``cases._variant_data``) and its absorbers' branch switch regularised: ``smooth =
+    true`` and ``rate_width`` on the axial element ``S``; default step."""
+    data = _variant_data(read_toml(STUDIES / "lander_slope.toml"), variant)
+    data["legs"]["S"].update(smooth=True, rate_width=rate_width)
+    data["scene"]["name"] = f"{data['scene']['name']}-regularised-{rate_width:g}"
+    return scene_from_dict(data, f"lander_slope.toml:{variant} (rate_width {rate_width:g})")
+
+
+def _final_position(scene, dt) -> np.ndarray:
+    model = compiled_model(scene, BUILD / scene.name, steps=CHUNK)
+    traj = simulate(scene.with_(dt=dt), model=at_step(model, scene, dt), monitor=False)
+    return np.asarray(traj.position[-1], dtype=float)
+
+
+def oracle(progress=print) -> list:
+    """Final centre of mass of the default step, the lock and the regularised switch.
+
+    One row per variant of :data:`ORACLE_VARIANTS` and run: ``variant``,
+    ``scheme`` ("default", "lock" or "regularised"), ``rate_width`` (NaN but
+    for the regularised runs), ``dt`` and ``final`` (m, (3,)).
+    """
+    by_label = {(name, label): scene for name, label, _, scene in scenes()}
+    rows = []
+    for variant in ORACLE_VARIANTS:
+        runs = [("default", np.nan, by_label["lander_slope", variant], ORACLE_DT),
+                ("lock", np.nan,
+                 by_label["lander_slope", case_label(variant, "midpoint", "lock")], ORACLE_DT)]
+        runs += [("regularised", w, regularized_scene(variant, w), dt) for w, dt in ORACLE_RUNS]
+        for scheme, w, scene, dt in runs:
+            final = _final_position(scene, dt)
+            rows.append(dict(variant=variant, scheme=scheme, rate_width=w, dt=dt, final=final))
+            progress(f"{variant} / {scheme}" + (f" (w = {w:g})" if scheme == "regularised" else "")
+                     + f", dt = {dt:g}: final {np.round(final, 5)}")
+    return rows
+
+
+def oracle_text(rows) -> str:
+    """The table of :func:`oracle`: each run's distance from the finest regularised run."""
+    lines = [ORACLE_INTRO, "",
+             "| variant | scheme | rate_width (m²/s) | Δt (s) | final centre of mass (m) "
+             "| from the regularised reference (mm) |", "|---|---|---:|---:|---|---:|"]
+    for variant in ORACLE_VARIANTS:
+        mine = [r for r in rows if r["variant"] == variant]
+        ref = [r for r in mine if r["scheme"] == "regularised"][-1]["final"]
+        for r in mine:
+            width = "—" if np.isnan(r["rate_width"]) else f"{r['rate_width']:g}"
+            lines.append(f"| {variant} | {r['scheme']} | {width} | {r['dt']:g} | "
+                         f"({', '.join(f'{x:.5f}' for x in r['final'])}) | "
+                         f"{1e3 * np.linalg.norm(r['final'] - ref):.2f} |")
+    return "\n".join(lines)
+
+
 def limits_text(rows) -> str:
-    """The section "Events: two limits on the slope" from the rows of :func:`limits`."""
+    """The section "Events: two limits on the slope" from the rows of :func:`limit_runs`."""
     finest = {r["label"]: r for r in rows if r["dt"] == min(LIMIT_DTS)}
     lines = ["| scheme | Δt (s) | final centre of mass (m) | from the scheme's 1e-6 s run (mm) "
              "| from the other scheme's 1e-6 s run (mm) | slipping contact samples "

@@ -13,7 +13,7 @@ from symcushion import report
 from .cases import DOC, FIGURES, scenes
 from .controls import controls, controls_text, cost_check, cost_text, switch_case
 from .figure import plot
-from .limits import limits, limits_text
+from .limits import limit_runs, limits_text, oracle, oracle_text
 from .runs import orders, run_case, write_csv
 from .text import _fmt_order, report_text
 
@@ -30,11 +30,12 @@ def main(argv=None):
                         help="run only the interleaved timing of the located switch and write "
                         "its section")
     parser.add_argument("--limits", action="store_true",
-                        help="run only the default step and the stroke lock on the slope lander "
-                        "down to 1e-6 s and write their section")
+                        help="run only the default step, the stroke lock and the regularised branch "
+                        "switch down to 1e-6 s and write their section")
     args = parser.parse_args(argv)
     if args.limits:
-        report.write_section(DOC, "Events: two limits on the slope", limits_text(limits()))
+        text = limits_text(limit_runs()) + "\n\n" + oracle_text(oracle())
+        report.write_section(DOC, "Events: two limits on the slope", text)
         return
     if args.cost:
         report.write_section(DOC, "Events: cost", cost_text(cost_check()))
