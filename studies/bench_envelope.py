@@ -27,13 +27,17 @@ Class changes (``--class-changes``): 2,000 cases at Δt = 1, 0.5 and
 absorbers' stroke lock — the share of cases whose class changes when Δt is
 halved.
 
+Reference (``--reference``): the first 200 cases with the study's step and
+with the absorbers' branch switch regularised (:data:`REGULARISED_WIDTH`), the
+reference for the held stroke of docs/speed-vs-error.md.
+
 With ``--refine`` the midpoint rule with and without the lock at Δt = 0.5
 down to 0.0625 ms, with the CPU per case of each run.
 
 Each writes its section of docs/envelope.md (``symcushion.report``).
 
     python studies/bench_envelope.py [--n 1000] [--full] [--accuracy] [--methods]
-                                     [--class-changes [--refine]]
+                                     [--class-changes [--refine]] [--reference]
 """
 from __future__ import annotations
 
@@ -53,6 +57,8 @@ from symcushion import report
 from symcushion.envelope import (CLASSES, CONFIDENCE, build_envelope, case_params, classify,
                                  evaluate, initial_states, load_study, reach, run_batch, run_envelope,
                                  sample_conditions, wilson_interval)
+from symcushion.envelope.study import study_from_dict
+from symcushion.scene import read_toml
 
 ROOT = Path(__file__).resolve().parent.parent
 STUDY = ROOT / "studies" / "envelope_lander.toml"
@@ -293,6 +299,49 @@ def class_changes(n: int = CHANGE_CASES, dts=CHANGE_DTS, schemes=SCHEMES, *,
                  "(sampling, initial states and classification included, the build excluded), "
                  f"load average {os.getloadavg()[0]:.1f} at the end.")
     return text + "\n\n" + "\n".join(lines)
+
+
+#: The regularised reference of ``--reference``: the absorbers' branch switch
+#: blended over rate_width (m²/s; ``smooth = true``), resolved at REGULARISED_DT
+#: (s), on the first REGULARISED_CASES cases. On the 10° lander this width ends
+#: 7 mm from the finest regularised run, the lock 54 mm (docs/speed-vs-error.md,
+#: "Events: two limits on the slope"); a finer width costs ten times as much.
+REGULARISED_WIDTH = 1e-4
+REGULARISED_DT = 1e-5
+REGULARISED_CASES = 200
+
+
+def reference_check(n: int = REGULARISED_CASES) -> str:
+    """The study's classes against the regularised reference, on the first `n` cases."""
+    base = load_study(STUDY).with_(n=CHANGE_CASES)
+    cond = {k: np.asarray(v)[:n] for k, v in sample_conditions(base).items()}
+    data = read_toml(STUDY)
+    data["legs"]["S"].update(smooth=True, rate_width=REGULARISED_WIDTH)
+    data["scene"].update(slip="backward", events="none", dt=REGULARISED_DT)
+    data["study"]["name"] = f"{base.name}_regularised"
+    reference = study_from_dict(data, f"{STUDY.name} (regularised)")
+    threads = os.cpu_count() or 1
+    out = {}
+    for label, study in (("study", base), ("reference", reference)):
+        started = time.perf_counter()
+        out[label] = evaluate(study, cond, threads=threads, cache_dir=CACHE, progress=True)["class"]
+        print(f"{label}: {time.perf_counter() - started:.1f} s", flush=True)
+    differ = out["study"] != out["reference"]
+    rows = ["| run | P(stable), 95 % Wilson |", "|---|---|"]
+    for label, text in (("study", f"the study ({base.scene.slip}, {base.scene.events}, "
+                                  f"{base.scene.dt * 1e3:g} ms)"),
+                        ("reference", f"regularised reference (rate_width {REGULARISED_WIDTH:g}, "
+                                      f"{REGULARISED_DT * 1e3:g} ms)")):
+        est, lo, hi = wilson_interval(np.sum(out[label] == "stable"), n)
+        rows.append(f"| {text} | {est:.3f} [{lo:.3f}, {hi:.3f}] |")
+    moves = Counter(f"{a} → {b}" for a, b in zip(out["study"], out["reference"]) if a != b)
+    return (f"Produced by `python studies/bench_envelope.py --reference`: the first {n} cases of "
+            f"the example study (seed {base.seed}) with the study's step and with the absorbers' "
+            "branch switch regularised (`smooth = true`, `rate_width` "
+            f"{REGULARISED_WIDTH:g} m²/s, default step at Δt = {REGULARISED_DT * 1e3:g} ms). "
+            f"**{np.mean(differ):.1%} of the classes differ** ({int(np.sum(differ))} of {n}; "
+            "study → reference: " + ", ".join(f"{k} {v}" for k, v in moves.most_common()) + ").\n\n"
+            + "\n".join(rows))
 
 
 def _variant_label(variant) -> str:
@@ -549,6 +598,8 @@ def main(argv=None) -> None:
     parser.add_argument("--class-changes", action="store_true",
                         help="share of classes that change when Δt is halved, per scheme of the step, "
                              "instead")
+    parser.add_argument("--reference", action="store_true",
+                        help="the study's classes against a regularised branch switch, instead")
     parser.add_argument("--refine", action="store_true",
                         help="with --class-changes: the midpoint rule with and without the lock at "
                              "Δt = 0.5 ms down to 0.0625 ms, with the CPU per case")
@@ -557,6 +608,9 @@ def main(argv=None) -> None:
     args = parser.parse_args(argv)
     if args.methods:
         report.write_section(DOCS, METHODS_HEADING, methods(args.threads),
+                             title="# Touchdown stability envelope")
+    elif args.reference:
+        report.write_section(DOCS, "Classes against a regularised reference", reference_check(),
                              title="# Touchdown stability envelope")
     elif args.class_changes and args.refine:
         report.write_section(DOCS, "Class changes at smaller Δt",
