@@ -96,9 +96,8 @@ def limit_runs(progress=print) -> list:
     rows = []
     for key in LIMIT_SCHEMES:
         scene = slope[key]
-        model = compiled_model(scene, BUILD / scene.name, steps=CHUNK)
         for dt in LIMIT_DTS:
-            traj = simulate(scene.with_(dt=dt), model=at_step(model, scene, dt), monitor=False)
+            traj = _trajectory(scene, dt)
             row = dict(label=case_label("all events", *key), dt=dt,
                        final=np.asarray(traj.position[-1], dtype=float), **slip_at_reversals(traj))
             progress(f"{row['label']}, dt = {dt:g}: final x {row['final'][0]:.5f} m, slip "
@@ -117,10 +116,10 @@ def regularized_scene(variant: str, rate_width: float):
     return scene_from_dict(data, f"lander_slope.toml:{variant} (rate_width {rate_width:g})")
 
 
-def _final_position(scene, dt) -> np.ndarray:
+def _trajectory(scene, dt):
+    """A compiled run of ``scene`` at ``dt`` (the build is cached per scene name)."""
     model = compiled_model(scene, BUILD / scene.name, steps=CHUNK)
-    traj = simulate(scene.with_(dt=dt), model=at_step(model, scene, dt), monitor=False)
-    return np.asarray(traj.position[-1], dtype=float)
+    return simulate(scene.with_(dt=dt), model=at_step(model, scene, dt), monitor=False)
 
 
 def oracle(progress=print) -> list:
@@ -138,7 +137,7 @@ def oracle(progress=print) -> list:
                  by_label["lander_slope", case_label(variant, "midpoint", "lock")], ORACLE_DT)]
         runs += [("regularised", w, regularized_scene(variant, w), dt) for w, dt in ORACLE_RUNS]
         for scheme, w, scene, dt in runs:
-            final = _final_position(scene, dt)
+            final = np.asarray(_trajectory(scene, dt).position[-1], dtype=float)
             rows.append(dict(variant=variant, scheme=scheme, rate_width=w, dt=dt, final=final))
             progress(f"{variant} / {scheme}" + (f" (w = {w:g})" if scheme == "regularised" else "")
                      + f", dt = {dt:g}: final {np.round(final, 5)}")
