@@ -432,9 +432,37 @@ class Terminated(SystemExit):
     """Raised by the SIGTERM handler; its code is 128 + the signal number."""
 
 
+#: Seconds between re-raisings of a termination that has not reached :func:`main`.
+#: A C extension can swallow an exception raised while it runs Python code:
+#: SWIG's overload dispatch (CasADi's ``Function.call``) tries each signature
+#: and clears the errors of those that fail, so one raise could be lost and the
+#: run go on to its end.
+TERMINATION_REMINDER = 0.1
+
+_pending: int | None = None     # the exit code of a SIGTERM not yet reported
+
+
 def _terminate(signum, frame):
-    """SIGTERM ends the run like Ctrl-C: temporary files are removed, results kept whole."""
-    raise Terminated(128 + signum)
+    """SIGTERM ends the run like Ctrl-C: temporary files are removed, results kept whole.
+
+    The termination is remembered and raised again every
+    :data:`TERMINATION_REMINDER` s (SIGALRM) until :func:`main` reports it.
+    """
+    global _pending
+    _pending = 128 + signum
+    signal.setitimer(signal.ITIMER_REAL, TERMINATION_REMINDER, TERMINATION_REMINDER)
+    _remind(signal.SIGALRM, frame)
+
+
+def _remind(signum, frame):
+    """Raise the pending termination, unless an exception is being handled.
+
+    Code in an ``except``, ``finally`` or ``__exit__`` is cleaning up (a
+    propagating termination, or an error on its way to :func:`main`); it is
+    never interrupted, so temporary files are always removed.
+    """
+    if _pending is not None and sys.exc_info()[1] is None:
+        raise Terminated(_pending)
 
 
 def _termination_in(exc: BaseException) -> Terminated | None:
@@ -443,8 +471,12 @@ def _termination_in(exc: BaseException) -> Terminated | None:
     A signal handler runs wherever Python next checks for signals, which may
     be inside a C extension calling back into Python (CasADi's ``DM.__array__``
     under NumPy, for one); such callers wrap the exception in a
-    ``SystemError``. The chain of causes still holds the termination.
+    ``SystemError``, or replace it (SWIG's ``NotImplementedError`` for "wrong
+    number or type of arguments"). A pending SIGTERM, or a termination in the
+    chain of causes, means the signal caused it.
     """
+    if _pending is not None:
+        return Terminated(_pending)
     seen = set()
     while exc is not None and id(exc) not in seen:
         if isinstance(exc, Terminated):
@@ -455,8 +487,11 @@ def _termination_in(exc: BaseException) -> Terminated | None:
 
 
 def main(argv=None) -> int:
+    global _pending
     args = _parser().parse_args(argv)
+    _pending = None
     previous = signal.signal(signal.SIGTERM, _terminate)
+    previous_alarm = signal.signal(signal.SIGALRM, _remind)
     try:
         return args.func(args)
     except (ValueError, TypeError, FileNotFoundError) as exc:
@@ -471,7 +506,11 @@ def main(argv=None) -> int:
     except Terminated as term:
         return _report_termination(args, term)
     finally:
+        if _pending is not None:
+            signal.setitimer(signal.ITIMER_REAL, 0)
+        _pending = None
         signal.signal(signal.SIGTERM, previous)
+        signal.signal(signal.SIGALRM, previous_alarm)
 
 
 def _report_termination(args, term: Terminated) -> int:

@@ -188,6 +188,52 @@ def test_termination_inside_a_c_extension_still_exits_with_the_signal_code(
     assert "terminated" in capsys.readouterr().err
 
 
+#: Seconds a run that swallowed its SIGTERM goes on before the test gives up.
+SWALLOWED_RUN = 5.0
+
+
+def _swallowing_run(replace_with=None):
+    """A run whose SIGTERM is raised inside code that clears the error, as SWIG's
+    overload dispatch does; it would go on for :data:`SWALLOWED_RUN` s."""
+    def run(args):
+        try:
+            cli._terminate(signal.SIGTERM, None)
+        except BaseException:
+            if replace_with is not None:
+                raise replace_with from None
+        deadline = time.monotonic() + SWALLOWED_RUN
+        while time.monotonic() < deadline:
+            sum(range(1000))
+        return 0
+    return run
+
+
+@pytest.mark.parametrize("replace_with", (None, NotImplementedError("Wrong number or type")))
+def test_a_swallowed_termination_is_raised_again(tmp_path, monkeypatch, capsys, replace_with):
+    monkeypatch.setattr(cli, "_cmd_simulate", _swallowing_run(replace_with))
+    start = time.monotonic()
+    code = cli.main(["simulate", str(FIG3), "--out", str(tmp_path / "out"), "--no-plots"])
+    assert code == 128 + signal.SIGTERM
+    assert time.monotonic() - start < SWALLOWED_RUN
+    assert "terminated" in capsys.readouterr().err
+    assert cli._pending is None
+    assert signal.getitimer(signal.ITIMER_REAL) == (0.0, 0.0)
+
+
+def test_the_reminder_does_not_interrupt_cleanup(tmp_path, monkeypatch):
+    cleaned = []
+
+    def run(args):
+        try:
+            cli._terminate(signal.SIGTERM, None)
+        finally:
+            time.sleep(3 * cli.TERMINATION_REMINDER)    # reminders fall due here
+            cleaned.append(True)
+    monkeypatch.setattr(cli, "_cmd_simulate", run)
+    code = cli.main(["simulate", str(FIG3), "--out", str(tmp_path / "out"), "--no-plots"])
+    assert code == 128 + signal.SIGTERM and cleaned == [True]
+
+
 def test_other_errors_from_c_extensions_are_not_taken_for_termination(tmp_path, monkeypatch):
     def broken(args):
         raise SystemError("a real bug")
