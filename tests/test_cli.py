@@ -211,10 +211,8 @@ def _swallowing_run(replace_with=None):
 @pytest.mark.parametrize("replace_with", (None, NotImplementedError("Wrong number or type")))
 def test_a_swallowed_termination_is_raised_again(tmp_path, monkeypatch, capsys, replace_with):
     monkeypatch.setattr(cli, "_cmd_simulate", _swallowing_run(replace_with))
-    start = time.monotonic()
     code = cli.main(["simulate", str(FIG3), "--out", str(tmp_path / "out"), "--no-plots"])
-    assert code == 128 + signal.SIGTERM
-    assert time.monotonic() - start < SWALLOWED_RUN
+    assert code == 128 + signal.SIGTERM     # a lost termination would let the run return 0
     assert "terminated" in capsys.readouterr().err
     assert cli._pending is None
     assert signal.getitimer(signal.ITIMER_REAL) == (0.0, 0.0)
