@@ -58,6 +58,7 @@ from .contact_implicit import (  # noqa: F401 (CANCEL_TOL, FINAL_*, ROOT_SCALE_R
     ROOT_TOL,
     implicit_step,
     merge_stick,
+    slip_step,
     stick_trial,
 )
 from .contact_paper import paper_step
@@ -88,6 +89,8 @@ UNIT_TOL = 1e-9
 METHODS = ("paper", "robust", "implicit")
 INPUT_NAMES = ["P0", "Dp", "n", "l", "mu", "u0"]
 OUTPUT_NAMES = ["delta", "P", "k", "contact"]
+#: Shapes of the inputs, in INPUT_NAMES order.
+INPUT_SHAPES = ((3, 1), (3, 3), (3, 1), (3, 1), (1, 1), (3, 1))
 
 
 # ---------------------------------------------------------------------------
@@ -181,7 +184,7 @@ def contact_step_expr(method, P0, Dp, n, l, mu, u0, *, friction=None):
     elif method == "robust":
         out = robust_step(P0, Dp, n, l, mu, u0, friction)
     else:
-        out = implicit_step(P0, Dp, n, l, mu, u0, friction)
+        out = _implicit_expr(P0, Dp, n, l, mu, u0, friction)
     # The same operation on the same operands once (the guards and the
     # candidates build some twice); values are unchanged to the bit.
     return dict(zip(OUTPUT_NAMES, ca.cse([out[key] for key in OUTPUT_NAMES])))
@@ -211,48 +214,76 @@ def _build(method, friction):
 #: Function with fewer outputs than inputs) sums in another order and moves
 #: the Jacobian of ill-conditioned slips by up to 4e-10 relative.
 _FORWARD_AD = {"ad_weight": 0, "ad_weight_sp": 0}
-#: Outputs of the implicit step's stick trial that its branches take as inputs.
-TRIAL_NAMES = ["stick", "P_t"]
+#: Outputs of the implicit step's stick trial that its branches take as inputs:
+#: the stick flag, the trial force P_t, and what the slip part needs of the
+#: trial (``contact_implicit.slip_step``: N_t, T_t, T_t^2 and the direction t1).
+TRIAL_NAMES = ["stick", "P_t", "N_t", "T_t", "T2", "t1"]
+_TRIAL_SHAPES = ((1, 1), (3, 1), (1, 1), (1, 1), (1, 1), (3, 1))
+
+
+def _trial_outputs(P0, Dp, n, l, mu):
+    """The expressions of TRIAL_NAMES (``stick_trial``), in that order."""
+    P_t, N_t, T_t, t1, stick = stick_trial(P0, Dp, n, l, mu)
+    return [stick, P_t, N_t, T_t, T_t * T_t, t1]
 
 
 @functools.lru_cache(maxsize=None)
 def _build_branches(friction):
     """The implicit step in three SX Functions: its stick trial and its two branches.
 
-    ``..._trial`` maps the step's inputs to TRIAL_NAMES: the stick flag and
-    the trial force P_t = P0 + Dp l (``stick_trial``). ``..._slip`` and
-    ``..._stick`` take the step's inputs, those two and ``other`` (zeros
-    from the caller) and return the step's outputs. The slip branch is the
-    full step, trial included. Given N_t, T_t and t1 as inputs instead it
-    was 27 ns faster per slip (of 660), but it gave the full step's bits
-    only with T_t^2 passed too (in one graph CasADi simplifies the square of
-    T_t's guarded square root to its argument), and even then its Jacobian
-    through the call moved by up to 1.4e-11 relative to the largest entry,
-    where the full step's is matched to the bit. The stick branch returns
-    delta = l, P = P_t from the trial, through the full step's own
+    ``..._trial`` maps the step's inputs to TRIAL_NAMES (:func:`_trial_outputs`).
+    ``..._slip`` and ``..._stick`` take the step's inputs, those and
+    ``other`` (zeros from the caller) and return the step's outputs. The
+    slip branch is ``contact_implicit.slip_step`` on the trial's values: it
+    does not compute the trial again (27 ns of about 660 per slip). The full
+    step (``contact_step_implicit``) inlines this same branch on the trial's
+    expressions (:func:`_implicit_expr`), so that the two execute the same
+    operations: the same bits, and the same derivatives. The stick branch
+    returns delta = l, P = P_t from the trial, through the full step's own
     ``merge_stick`` on the symbolic flag, so that a -0.0 in `l` comes out
     +0.0 as from the full step (CasADi's ``if_else`` is a sum); its unused
     slip values are the input ``other``, which CasADi cannot simplify away.
     """
-    f = _build("implicit", friction)
-    inputs = f.sx_in()
+    name = "contact_step_implicit" + ("" if friction else "_frictionless")
+    inputs = [ca.SX.sym(key, *shape) for key, shape in zip(INPUT_NAMES, INPUT_SHAPES)]
     P0, Dp, n, l, mu, u0 = inputs
     mu_eff = mu if friction else ca.SX(0.0)  # the frictionless step ignores mu
-    P_t, _, _, _, stick = stick_trial(P0, Dp, n, l, mu_eff)
-    name = f.name()
-    test = ca.Function(f"{name}_trial", inputs, [stick, P_t], INPUT_NAMES, TRIAL_NAMES,
-                       _FORWARD_AD)
-    s_stick, s_P_t = ca.SX.sym("stick"), ca.SX.sym("P_t", 3)
+    test = ca.Function(f"{name}_trial", inputs, _trial_outputs(P0, Dp, n, l, mu_eff),
+                       INPUT_NAMES, TRIAL_NAMES, _FORWARD_AD)
+    trial = [ca.SX.sym(key, *shape) for key, shape in zip(TRIAL_NAMES, _TRIAL_SHAPES)]
+    s_stick, s_P_t, N_t, T_t, T2, t1 = trial
     other = ca.SX.sym("other", 10)
-    branch_in = inputs + [s_stick, s_P_t, other]
+    branch_in = inputs + trial + [other]
     branch_names = INPUT_NAMES + TRIAL_NAMES + ["other"]
-    slip = f.call(inputs, True, False)  # the full step's expressions, inlined
+    slip = slip_step(P0, Dp, n, l, mu_eff, u0, N_t, T_t, T2, t1, friction)
+    slip_out = ca.cse([slip[key] for key in OUTPUT_NAMES])
     unused = dict(zip(OUTPUT_NAMES, (other[0:3], other[3:6], other[6:9], other[9])))
     stick_out = merge_stick(s_stick, l, s_P_t, unused)
     stick_out = ca.cse([stick_out[key] for key in OUTPUT_NAMES])
     return test, [ca.Function(f"{name}_{kind}", branch_in, out, branch_names, OUTPUT_NAMES,
                               _FORWARD_AD)
-                  for kind, out in (("slip", slip), ("stick", stick_out))]
+                  for kind, out in (("slip", slip_out), ("stick", stick_out))]
+
+
+def _implicit_expr(P0, Dp, n, l, mu, u0, friction):
+    """The full implicit step's expressions, its slip part the inlined slip branch.
+
+    ``contact_implicit.implicit_step`` with the slip part replaced by an
+    inlined call of the slip branch of :func:`_build_branches` on the
+    trial's expressions: the full step then executes the branch's
+    operations exactly, rather than a graph CasADi simplifies across the
+    trial, so that the conditional call (:func:`_build_conditional`) gives
+    the full step's values and derivatives to the bit.
+    """
+    _, (slip_branch, _) = _build_branches(friction)
+
+    def slip_part(P0, Dp, n, l, mu, u0, N_t, T_t, T2, t1, friction):
+        # the slip branch does not use `stick`, `P_t` or `other`
+        unused = ca.SX.zeros(1, 1), ca.SX.zeros(3, 1)
+        args = [P0, Dp, n, l, mu, u0, *unused, N_t, T_t, T2, t1, ca.SX.zeros(10, 1)]
+        return dict(zip(OUTPUT_NAMES, slip_branch.call(args, True, False)))
+
+    return implicit_step(P0, Dp, n, l, mu, u0, friction, slip_part)
 
 
 def _build_conditional(friction):

@@ -17,7 +17,7 @@ import casadi as ca
 
 from .contact_guards import (CONE_TOL, TINY, at_least, at_most, exceeds, lift_off, safe_div,
                              safe_sqrt, sign_plus, unit, within)
-from .contact_quartic import quartic_roots
+from .contact_quartic import halley_step, horner, quartic_roots
 
 __all__ = [
     "stick_trial",
@@ -30,6 +30,7 @@ __all__ = [
     "ROOT_TOL",
     "implicit_step",
     "merge_stick",
+    "slip_step",
 ]
 
 # A candidate lam of the implicit step is a root of det(K + lam I) -- g(lam)
@@ -43,12 +44,13 @@ DET_TOL = 1e-12
 # rejects the squared equation's roots of lam |g| = -mu N (relative residual
 # 2) and the real parts of complex pairs more than ~1e-3 off the real axis.
 ROOT_TOL = 1e-6
-# Newton steps of the implicit step on the chosen root of the quartic: a
-# candidate accepted at ROOT_TOL (with a stiff normal coupling, relative to
-# |N_t| + |a.g| rather than N) can be off by ~1e-3 relative; two steps reach
-# round-off, the third makes the derivative of the last step the
-# implicit-function derivative.
-FINAL_STEPS = 3
+# Halley steps (contact_quartic.halley_step) of the implicit step on the
+# chosen root of the quartic: a candidate accepted at ROOT_TOL (with a stiff
+# normal coupling, relative to |N_t| + |a.g| rather than N) can be off by
+# ~1e-3 relative; one step (cubic convergence) takes that to ~1e-9, the
+# second to round-off, and its derivative is then the implicit-function
+# derivative. (Three Newton steps did the same for 5 ns more.)
+FINAL_STEPS = 2
 # Each of those steps moves lam by at most FINAL_CLIP lam, so that a flat Q
 # (a double root) cannot throw it onto another root.
 FINAL_CLIP = 1e-2
@@ -175,10 +177,11 @@ def _family_slips(K11, K12, K21, K22, a1, a2, T, N_t, mu, K_norm):
     return out
 
 
-def _quartic(K11, K12, K21, K22, a1, a2, T, N_t, mu, K_norm):
+def _quartic(K11, K12, K21, K22, a1, a2, T, T2, N_t, mu, K_norm):
     """Coefficients [Q0..Q4] of the implicit step's quartic in lam, and its root scale c.
 
-    Q(lam) = lam^2 |adj(K + lam I) p|^2 - mu^2 R(lam)^2 with p = (T, 0):
+    Q(lam) = lam^2 |adj(K + lam I) p|^2 - mu^2 R(lam)^2 with p = (T, 0)
+    (T2 = T^2, as the caller has it):
     |adj p|^2 = T^2 ((lam + K22)^2 + K21^2) and
     R(lam) = N_t det(K + lam I) - a.adj(K + lam I) p = r2 lam^2 + r1 lam + r0.
     The closed form is most accurate with the roots spread evenly around
@@ -186,7 +189,7 @@ def _quartic(K11, K12, K21, K22, a1, a2, T, N_t, mu, K_norm):
     ROOT_SCALE_RANGE of the stiffness scale |K|_F + mu |a| (Q4 or Q0 can
     vanish).
     """
-    T2, mu2 = T * T, mu * mu
+    mu2 = mu * mu
     r2 = N_t
     r1 = N_t * (K11 + K22) - T * a1
     r0 = N_t * (K11 * K22 - K12 * K21) - T * (a1 * K22 - a2 * K21)
@@ -202,16 +205,15 @@ def _quartic(K11, K12, K21, K22, a1, a2, T, N_t, mu, K_norm):
 
 
 def _polish_root(Q, lam):
-    """FINAL_STEPS Newton steps on Q at the chosen root, each clipped to FINAL_CLIP lam.
+    """FINAL_STEPS Halley steps on Q at the chosen root, each clipped to FINAL_CLIP lam.
 
     The candidates are accepted at ROOT_TOL; this brings lam to round-off
     (Coulomb-exact), and its derivative is then the implicit-function one.
     The clip keeps a flat Q (a double root) from moving lam far.
     """
     for _ in range(FINAL_STEPS):
-        f = (((Q[4] * lam + Q[3]) * lam + Q[2]) * lam + Q[1]) * lam + Q[0]
-        df = ((4 * Q[4] * lam + 3 * Q[3]) * lam + 2 * Q[2]) * lam + Q[1]
-        lam = lam - at_most(at_least(safe_div(f, df), -FINAL_CLIP * lam), FINAL_CLIP * lam)
+        step = halley_step(*horner(Q, lam))
+        lam = lam - at_most(at_least(step, -FINAL_CLIP * lam), FINAL_CLIP * lam)
     return lam
 
 
@@ -290,7 +292,7 @@ def _tangent_stiffness(Dp, n, t1):
     return t2, K11, K12, K21, K22, a1, a2, K_norm
 
 
-def implicit_step(P0, Dp, n, l, mu, u0, friction):
+def implicit_step(P0, Dp, n, l, mu, u0, friction, slip_part=None):
     r"""Find the tangential slip g with P = P0 + Dp (l - g) on the cone.
 
     Coulomb's law for the slip g (n.g = 0, the foot slides by -g relative to
@@ -313,9 +315,15 @@ def implicit_step(P0, Dp, n, l, mu, u0, friction):
     after its conversion: P0, n, l, u0 (3, 1), Dp (3, 3) and mu (1, 1)
     ``casadi.SX``, in N, m and N/m; ``k`` holds the slip g (3, 1), m.
     `friction` False builds the mu = 0 step: lam = 0 only, no quartic.
+    `slip_part` (default :func:`slip_step`) builds the slip part from the
+    same arguments as :func:`slip_step`; ``symcushion.contact`` passes one
+    that inlines the compiled slip branch of its conditional call, so that
+    the full step executes exactly the branch's operations.
     """
+    slip_part = slip_step if slip_part is None else slip_part
     P_t, N_t, T_t, t1, stick = stick_trial(P0, Dp, n, l, mu)
-    return merge_stick(stick, l, P_t, slip_step(P0, Dp, n, l, mu, u0, N_t, T_t, t1, friction))
+    slip = slip_part(P0, Dp, n, l, mu, u0, N_t, T_t, T_t * T_t, t1, friction)
+    return merge_stick(stick, l, P_t, slip)
 
 
 def merge_stick(stick, l, P_t, slip):
@@ -334,23 +342,24 @@ def merge_stick(stick, l, P_t, slip):
     )
 
 
-def slip_step(P0, Dp, n, l, mu, u0, N_t, T_t, t1, friction):
+def slip_step(P0, Dp, n, l, mu, u0, N_t, T_t, T2, t1, friction):
     """The implicit step for a foot that does not stick: slip or lift-off.
 
     N_t, T_t and t1 are the trial force's normal and tangential magnitudes
-    (N) and its unit tangent direction (3, 1), the expressions of
-    :func:`stick_trial`. (Passed as numbers from a separate Function they
-    would not give the full step's bits: in one graph CasADi simplifies
-    across the trial, e.g. the square of T_t's guarded square root to its
-    argument.) Returns the dict of :func:`implicit_step` for the slip or
-    lift-off answer (its value where the trial sticks is unused).
+    (N) and its unit tangent direction (3, 1) from :func:`stick_trial`, and
+    T2 (N^2) is T_t * T_t as the trial's graph computes it: the slip part
+    never squares T_t itself, so that it gives the same bits whether these
+    are the trial's expressions or numbers passed from a separate Function
+    (in one graph CasADi simplifies the square of T_t's guarded square root
+    to its argument). Returns the dict of :func:`implicit_step` for the slip
+    or lift-off answer (its value where the trial sticks is unused).
     """
     # Slip in the tangent frame (t1, t2) of the trial force, p = (T_t, 0).
     t2, K11, K12, K21, K22, a1, a2, K_norm = _tangent_stiffness(Dp, n, t1)
     lams = [ca.SX(0.0)]  # the frictionless slide g = K^-1 p
     if friction:
         lams = []
-        Q, c = _quartic(K11, K12, K21, K22, a1, a2, T_t, N_t, mu, K_norm)
+        Q, c = _quartic(K11, K12, K21, K22, a1, a2, T_t, T2, N_t, mu, K_norm)
         lams += quartic_roots(Q, c)
         # lam = 0 (the frictionless slide) solves lam |g| = mu N only when
         # mu N = 0: at mu = 0 it replaces the first root (the quartic is then
@@ -364,7 +373,7 @@ def slip_step(P0, Dp, n, l, mu, u0, N_t, T_t, t1, friction):
     # chosen root; family candidates keep their own g.
     found, lam_best, g1, g2, family = _select(
         candidates, len(lams), _largest_pole(K11, K12, K21, K22, K_norm),
-        a1, a2, N_t, mu, CONE_TOL * safe_sqrt(N_t * N_t + T_t * T_t))
+        a1, a2, N_t, mu, CONE_TOL * safe_sqrt(N_t * N_t + T2))
     if friction:
         lam = _polish_root(Q, lam_best)
         h1, h2, ok = _secular_slip(lam, K11, K12, K21, K22, T_t, K_norm)

@@ -134,13 +134,18 @@ def test_lander_gradient_matches_central_differences(lander, which):
         # difference interval and are left out above. With a step that does
         # not reach the switches AD matches every row (below).
         assert check["nonsmooth_scenarios"] == ["drift", "vertical"], check
-        # (at this step the smoothness test is at the round-off level, so it
-        # is the Frobenius norm over all rows that is asserted)
-        # (the vertical touchdown's switch lies between 1e-9 and 1e-8 of this
-        # optimum: at 1e-8 its rows still jump, at 1e-9 every row matches,
-        # 5.7e-6 measured; at 1e-10 round-off reaches 5.9e-5)
+        # At a step of 1e-9 the drift touchdown's switch is out of reach and
+        # its rows match AD. The vertical touchdown's switch is not: the
+        # optimum sits on it to within 1e-12 along three of the twelve axes
+        # (measured: its deceleration rows jump by 8.1 for a step of +1e-12
+        # in the fifth scaled variable), so those rows jump at every step and
+        # are left out;
+        # the smooth rows match (5.8e-6 measured; at 1e-10 round-off reaches
+        # 5.9e-5). Which side of a switch a 1e-9 step lands on depends on
+        # the rollout's round-off.
         fine = problem.check_gradient(theta, step=1e-9)
-        assert fine["relative_all"] <= GRADIENT_TOL, fine
+        assert fine["relative"] <= GRADIENT_TOL, fine
+        assert set(fine["nonsmooth_scenarios"]) <= {"vertical"}, fine
 
 
 def test_lander_result_meets_every_limit_and_lowers_the_peak(lander):

@@ -9,7 +9,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-__all__ = ["FD_STEP", "ROW_FLOOR", "FD_AGREEMENT"]
+__all__ = ["FD_STEP", "ROW_FLOOR", "FD_AGREEMENT", "NOISE_STEP", "NOISE_FACTOR"]
 
 #: Central-difference step on the *scaled* design variables (all O(1)):
 #: truncation ≈ h²·f‴ ≈ 1e-10, round-off ≈ ε·|f|/h ≈ 1e-11 relative.
@@ -26,12 +26,43 @@ ROW_FLOOR = 1e-4
 #: this fraction of the row's norm mark it smooth within FD_STEP of the design
 #: (``check_gradient``); far stricter than any jump, which gives O(1/step).
 FD_AGREEMENT = 1e-6
+#: The round-off of each row is measured, not assumed: a rollout of a few
+#: hundred contact steps amplifies it far beyond eps·|f| (measured on the
+#: lander: about 3e-14 on rows of size 1e-2, i.e. ~1e-12 relative). It is
+#: taken as the median over the coordinate axes of the row's second
+#: difference over this step (scaled variables); the curvature term,
+#: NOISE_STEP²·|f''| ~ 1e-24, is far below it, and the step, ~5 000 ulps of
+#: an O(1) variable, decorrelates the round-off of the three evaluations.
+NOISE_STEP = 1e-12
+#: The two difference quotients of a row may differ by this many times the
+#: row's measured round-off divided by the finer step.
+NOISE_FACTOR = 10.0
 
 
 class _GradientCheck:
     """AD gradients of a :class:`DesignProblem` against central differences (a mixin)."""
 
     # -- derivatives --------------------------------------------------------------
+    def _row_noise(self, x) -> np.ndarray:
+        """Round-off of each row of (f, g) at scaled x, from evaluations only (no AD).
+
+        The median over the coordinate axes of the row's second difference
+        over NOISE_STEP: a switch that the step crosses along a few axes (the
+        design may sit on one) leaves the median at the round-off of the
+        others. One value per row, objective first.
+        """
+        def fg(z):
+            f, g = self.fg(z)
+            return np.concatenate([[f], g])
+
+        centre = fg(x)
+        second = []
+        for i in range(x.size):
+            e = np.zeros(x.size)
+            e[i] = NOISE_STEP
+            second.append(np.abs(fg(x + e) - 2 * centre + fg(x - e)))
+        return np.median(second, axis=0)
+
     def check_gradient(self, theta=None, step: float = FD_STEP) -> dict:
         """Compare the AD Jacobian of (f, g) in the design with central differences.
 
@@ -40,8 +71,10 @@ class _GradientCheck:
         with ``step/10``. A row whose two difference quotients disagree is not
         smooth within ``step`` of θ (a contact, stick/slip or branch switch
         jumps inside the interval: the quotient then grows like 1/step); such
-        rows are counted and named, not compared with AD. The smoothness test
-        does not involve AD, so it cannot hide a wrong derivative.
+        rows are counted and named, not compared with AD. Two quotients may
+        differ by their round-off, which is measured per row (``NOISE_STEP``,
+        ``NOISE_FACTOR``). The smoothness test does not involve AD, so it
+        cannot hide a wrong derivative.
 
         Returns
         -------
@@ -77,11 +110,12 @@ class _GradientCheck:
         norm = np.linalg.norm(J, axis=1)
         top = max(norm.max(), 1e-300)
         # two valid quotients differ by truncation (≤ h²·|f‴|) and round-off
-        # (≈ eps·|f|/h at the finer step, rows O(1)); a jump inside the
-        # interval makes them differ by O(jump/h)
+        # (noise/h at the finer step, per column); a jump inside the interval
+        # makes them differ by O(jump/h)
         spread = np.linalg.norm(J_fd - J_fine, axis=1)
-        smooth = spread <= FD_AGREEMENT * np.maximum(norm, ROW_FLOOR * top) \
-            + 100 * np.finfo(float).eps * 10 / step
+        noise = self._row_noise(x)
+        round_off = (100 * np.finfo(float).eps + NOISE_FACTOR * np.sqrt(x.size) * noise) * 10 / step
+        smooth = spread <= FD_AGREEMENT * np.maximum(norm, ROW_FLOOR * top) + round_off
         diff = np.linalg.norm(J - J_fd, axis=1)
         big = norm > 1e-8 * top
         row_rel = np.where(big, diff / np.where(big, norm, 1.0), 0.0)
