@@ -20,6 +20,11 @@ and velocity), then ``mujoco.mj_step(model, data, nstep=M)`` once, best of
 BEST_OF calls; µs per MuJoCo step = time / M. The ratio printed is MuJoCo's
 µs per step over symcushion's µs per step, as in the cost target.
 
+Also, so that one run prints every cost target of the exact step: the
+implicit contact step against the robust one per evaluation, both as the
+simulator calls them, compiled into one C harness and timed on the same
+2 000 random 3-D cases (``bench_contact.native_ratio``, docs/contact.md).
+
 Output: the numbers and ratios on stdout. Run:
 ``python studies/bench_touchdown.py``.
 """
@@ -33,6 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bench_contact import NATIVE_CASES, native_ratio, spatial_cases  # studies/bench_contact.py
 from symcushion import codegen
 from symcushion.codegen import CFLAGS, compiled_model
 from symcushion.peers.mujoco_model import build_mjcf, mujoco_available
@@ -124,6 +130,12 @@ def main() -> None:
     for label, method, mu, us, gcc, instr, mj, h, target in rows:
         print(f"| {label} | {method} | {mu:g} | {instr:,} | {gcc:.1f} | {us:.2f} | "
               f"{mj:.2f} ({h:g} s) | {mj / us:.2f} | ≥ {target:g} |")
+    cases = spatial_cases(np.random.default_rng(2024), NATIVE_CASES)
+    called = native_ratio(cases, called=True)
+    implicit, robust = called["contact_step_implicit"], called["contact_step_robust"]
+    print(f"\nContact step, as the simulator calls it ({NATIVE_CASES} random 3-D cases, "
+          f"C, -O3): implicit {implicit:.0f} ns, robust {robust:.0f} ns per evaluation; "
+          f"implicit/robust {implicit / robust:.2f} (target ≤ 1.5).")
 
 
 if __name__ == "__main__":

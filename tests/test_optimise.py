@@ -131,9 +131,13 @@ def test_lander_gradient_matches_central_differences(lander, which):
         # stop of the drift touchdown (its rows from t = 0.172 s on) and, with
         # the exact step from the quartic, in the vertical touchdown from
         # t = 0.046 s (where a foot changes branch); those rows jump inside the
-        # difference interval and are left out above. With a step that does
-        # not reach the switches AD matches every row (below).
-        assert check["nonsmooth_scenarios"] == ["drift", "vertical"], check
+        # difference interval and are left out above. The vertical switch is
+        # within 1e-12 of the optimum (below), so whether a step of 1e-5
+        # crosses it depends on the rollout's round-off, which differs between
+        # builds of the libraries (a clean CI install did not cross it): the
+        # drift rows always jump, the vertical ones may.
+        assert "drift" in check["nonsmooth_scenarios"], check
+        assert set(check["nonsmooth_scenarios"]) <= {"drift", "vertical"}, check
         # At a step of 1e-9 the drift touchdown's switch is out of reach and
         # its rows match AD. The vertical touchdown's switch is not: the
         # optimum sits on it to within 1e-12 along three of the twelve axes
