@@ -48,7 +48,7 @@ import casadi as ca
 import numpy as np
 
 from symcushion import codegen, report
-from symcushion.contact import (INPUT_NAMES, METHODS, OUTPUT_NAMES, contact_step, contact_step_call,
+from symcushion.contact import (INPUT_NAMES, INPUT_SHAPES, METHODS, OUTPUT_NAMES, contact_step, contact_step_call,
                                 stack_inputs)
 
 #: Random cases per family.
@@ -66,8 +66,6 @@ C_REPEAT = 20
 DOC = Path(__file__).resolve().parent.parent / "docs" / "contact.md"
 #: The C timing loop (symcushion/c/bench_contact.c).
 HARNESS = Path(codegen.__file__).parent / "c" / "bench_contact.c"
-#: Shapes of the contact step's inputs, in INPUT_NAMES order.
-INPUT_SHAPES = ((3, 1), (3, 3), (3, 1), (3, 1), (1, 1), (3, 1))
 SECTION = "Benchmark"
 
 
