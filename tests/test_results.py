@@ -127,6 +127,21 @@ def test_streamed_run_writes_every_row_and_keeps_few(tmp_path, monkeypatch):
     np.testing.assert_array_equal(back.rows, full.rows)
 
 
+def test_thinned_run_ends_on_its_last_row_when_the_last_block_keeps_none(monkeypatch):
+    # blocks of 7 steps against a stride that grows past 7: some blocks, the last
+    # among them, hold no kept row; the run must still end on its final state
+    monkeypatch.setattr(driver, "BLOCK_STEPS", 7)
+    scene = drop_scene(0.25)
+    full = simulate(scene)
+    kept = simulate(scene, keep_rows=3)
+    assert kept.info["stride"] > driver.BLOCK_STEPS
+    last_block = np.arange(len(full.t) - 1)[-((len(full.t) - 1) % 7 or 7):]
+    assert not np.any(last_block % kept.info["stride"] == 0)   # the case this test is for
+    assert kept.t[-1] == full.t[-1]
+    np.testing.assert_array_equal(kept.rows[-1], full.rows[-1])
+    assert np.isin(kept.t, full.t).all()
+
+
 def test_zero_gravity_writes_finite_columns(tmp_path):
     scene = drop_scene(0.2, gravity=(0.0, 0.0, 0.0))
     traj = simulate(scene)
