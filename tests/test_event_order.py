@@ -238,3 +238,46 @@ def test_oracle_text_measures_every_run_from_the_finest_regularised_one():
     line = next(l for l in text.splitlines() if l.startswith("| flat | default"))
     assert line.rstrip(" |").endswith("63.00")
     assert sum(l.rstrip(" |").endswith("| 0.00") for l in text.splitlines()) == 3
+
+
+def test_interior_rates_tell_the_held_rate_of_2_1_from_the_stroke_rate():
+    from types import SimpleNamespace
+    scene = event_order.regularized_scene("flat", 1e-5)
+    leg = scene.legs[0]
+    S = next(el.curve for el in leg.elements if el.name == "S")
+    n, dt = 40, 1e-3
+    t = dt * np.arange(2 * n + 1)
+    e_S = np.array([0.0, 0.6, -0.8])
+    # first half: the hinge stays and the foot slides out along the strut (δ_S′ = +0.01);
+    # second half: the foot stays and the hinge approaches it (δ_S′ = −0.02)
+    d = np.where(t <= n * dt, -0.05 + 0.01 * t, -0.05 + 0.01 * n * dt - 0.02 * (t - n * dt))
+    hinge = np.where((t <= n * dt)[:, None], 0.0, (0.02 * (t - n * dt))[:, None] * e_S)
+    foot = hinge + (leg.length + d)[:, None] * e_S
+    grows = np.where(d < 0, -1.0, 1.0)
+    S_l, S_u = (np.asarray(S.force(d, s), dtype=float).ravel() for s in (grows, -grows))
+    force = (0.5 * (S_l + S_u))[:, None] * e_S          # halfway between the curves
+    force[n // 2] = S_l[n // 2] * e_S                    # one sample on the loading curve
+    traj = SimpleNamespace(t=t, stroke=d[:, None], axis=np.tile(e_S, (len(t), 1))[:, None],
+                           foot=foot[:, None], force=force[:, None],
+                           contact=np.ones((len(t), 1)), mode=np.zeros((len(t), 1)))
+    out = event_order.interior_rates(traj, leg)
+    assert out["slide"]["samples"] == n - 1 and out["stick"]["samples"] == n
+    assert out["slide"]["rate_21"] == pytest.approx(0.0, abs=1e-12)
+    assert out["slide"]["stroke_rate"] == pytest.approx(0.01)
+    assert out["slide"]["foot_rate"] == pytest.approx(0.01)
+    assert out["stick"]["rate_21"] == pytest.approx(0.02)
+    assert out["stick"]["stroke_rate"] == pytest.approx(0.02)
+    empty = SimpleNamespace(**{**vars(traj), "contact": np.zeros((len(t), 1))})
+    assert np.isnan(event_order.interior_rates(empty, leg)["slide"]["rate_21"])
+
+
+def test_held_text_measures_each_run_from_the_last_of_its_variant():
+    rates = dict(samples=3, rate_21=1e-4, stroke_rate=5e-2, foot_rate=5e-2)
+    rows = [dict(variant="all events", rate_width=w, dt=dt, final=np.array([x, 0.0, 0.0]),
+                 slide=rates, stick=dict(rates, stroke_rate=1e-4))
+            for w, dt, x in ((1e-5, 1e-6, 0.390), (1e-6, 3e-7, 0.388))]
+    lines = event_order.held_text(rows).splitlines()
+    first = next(line for line in lines if line.startswith("| all events | 1e-05"))
+    cells = [c.strip() for c in first.strip("|").split("|")]
+    assert cells[4] == "2.00" and cells[5] == "3" and cells[6] == "1.0e-04"
+    assert cells[7] == "5.0e-02"

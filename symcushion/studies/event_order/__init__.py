@@ -69,6 +69,7 @@ from .controls import (CONTROLS, CONTROL_DTS, CONTROL_DT_REF, CONTROL_DURATION, 
                        controls_text, cost_check, cost_text, final_state,
                        settled, switch_case, switch_control)
 from .figure import LINES, PANELS, STYLE, plot
+from .held import HELD_RUNS, SIGMA_BAND, held_runs, held_text, interior_rates
 from .limits import (LIMIT_DTS, LIMIT_SCHEMES, ORACLE_DT, ORACLE_RUNS, ORACLE_VARIANTS,
                      limit_runs, limits_text, oracle, oracle_text, regularized_scene,
                      slip_at_reversals)
@@ -80,12 +81,13 @@ from .text import cost_ratios, report_text
 __all__ = [
     "BRANCH_VARIANTS", "BUILD", "CHUNK", "COLUMNS", "CONTROLS", "CONTROL_DTS", "CONTROL_DT_REF",
     "CONTROL_DURATION", "CONTROL_STIFFNESS", "COST_DT", "COST_ROUNDS", "DOC", "DT_CHECK",
-    "DT_GRID", "DT_REF", "ERROR_KEYS", "EVENT_OPTIONS", "FIGURES", "FLAT_GAP", "LIMIT_DTS",
+    "DT_GRID", "DT_REF", "ERROR_KEYS", "EVENT_OPTIONS", "FIGURES", "FLAT_GAP", "HELD_RUNS",
+    "LIMIT_DTS",
     "LIMIT_SCHEMES", "LINES", "ORACLE_DT", "ORACLE_RUNS", "ORACLE_VARIANTS", "PANELS", "REVERSAL_DTS",
-    "ROOT", "SETTLE_DT", "SLIP_DT", "SLIP_RULES", "STARTS", "STICK_MU", "STUDIES", "STYLE",
+    "ROOT", "SETTLE_DT", "SIGMA_BAND", "SLIP_DT", "SLIP_RULES", "STARTS", "STICK_MU", "STUDIES", "STYLE",
     "SWITCH_DTS", "SWITCH_KICK", "SWITCH_REF", "VARIANTS", "at_step", "case_label",
     "control_scene", "controls", "controls_text", "cost_check", "cost_ratios", "cost_text",
-    "final_error", "final_state", "leg_reversals", "limit_runs", "limits_text", "main", "oracle",
+    "final_error", "final_state", "held_runs", "held_text", "interior_rates", "leg_reversals", "limit_runs", "limits_text", "main", "oracle",
     "oracle_text", "orders", "plot", "report_text",
     "regularized_scene", "reversal_steps", "reversals", "run_case", "scenes", "settled",
     "slip_at_reversals",

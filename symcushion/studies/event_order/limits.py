@@ -18,10 +18,11 @@ stroke lock on the lander"); its foot then sees a force that jumps by the
 gap between the curves at every step, however small the step, and
 Coulomb's law responds to each half of that alternation rather than to its
 mean. The lock holds such a leg only while its foot sticks. The
-regularised switch (``smooth = true`` with a small ``rate_width``) holds
-every turning stroke, sliding foot or not, once its step resolves the blend:
-as the width falls it tends to the Filippov closure of (2.1), the motion
-both schemes approximate.
+regularised switch (``smooth = true`` with a small ``rate_width``), once its
+step resolves the blend, holds the rate whose sign (2.1) takes, sliding foot
+or not: as the width falls it tends to the Filippov closure of (2.1), the
+motion both schemes approximate. Where the foot sticks that rate is the
+stroke's; where it slides the stroke moves with the foot (``held``).
 """
 from __future__ import annotations
 
@@ -44,10 +45,10 @@ LIMIT_SCHEMES = (("backward", "none"), ("midpoint", "lock"))
 SLIP_MODE = 2
 #: The reference for the held stroke: the absorber's branch switch regularised
 #: (``smooth = true``, the blend 0.5(1 + tanh(x·ẋ/w)) of its two curves) with
-#: these (rate_width w in m²/s, Δt in s). As w → 0 the blend holds a turning
-#: stroke at any force between the curves, the Filippov closure, with or
+#: these (rate_width w in m²/s, Δt in s). As w → 0 the blend holds the rate
+#: of (2.1) at any force between the curves, the Filippov closure, with or
 #: without a sliding foot; each w needs a Δt that resolves its blend (the
-#: stroke rate's scale w/|x| against the leg's force gap and mass).
+#: rate's scale w/|x| against the leg's force gap and mass).
 ORACLE_RUNS = ((1e-5, 1e-6), (1e-6, 3e-7))
 #: Variants of the lander compared with that reference: feet that stick,
 #: some sliding feet (level ground, μ = 0.4), and the 10° slope.
@@ -55,7 +56,7 @@ ORACLE_VARIANTS = ("stick, flat", "flat", "all events")
 #: Δt of the default step and the lock in that comparison (s).
 ORACLE_DT = 1e-6
 #: The sentence that opens the comparison's table.
-ORACLE_INTRO = ("The reference for the held stroke: the same lander with its absorbers' "
+ORACLE_INTRO = ("The reference for the held rate of (2.1): the same lander with its absorbers' "
                 "branch switch regularised (`smooth = true`, the blend 0.5(1 + tanh(x·ẋ/w)) "
                 "of the two curves, `rate_width` w; default step), at a Δt that resolves the "
                 "blend, against the default step and the lock at 1e-6 s. Distances are from "
@@ -116,10 +117,12 @@ def regularized_scene(variant: str, rate_width: float):
     return scene_from_dict(data, f"lander_slope.toml:{variant} (rate_width {rate_width:g})")
 
 
-def _trajectory(scene, dt):
-    """A compiled run of ``scene`` at ``dt`` (the build is cached per scene name)."""
+def _trajectory(scene, dt, keep_rows=None):
+    """A compiled run of ``scene`` at ``dt`` (the build is cached per scene name); with
+    ``keep_rows``, its trajectory thinned to about that many rows (``simulate``)."""
     model = compiled_model(scene, BUILD / scene.name, steps=CHUNK)
-    return simulate(scene.with_(dt=dt), model=at_step(model, scene, dt), monitor=False)
+    return simulate(scene.with_(dt=dt), model=at_step(model, scene, dt), monitor=False,
+                    keep_rows=keep_rows)
 
 
 def oracle(progress=print) -> list:

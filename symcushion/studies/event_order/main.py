@@ -13,6 +13,7 @@ from symcushion import report
 from .cases import DOC, FIGURES, scenes
 from .controls import controls, controls_text, cost_check, cost_text, switch_case
 from .figure import plot
+from .held import held_runs, held_text
 from .limits import limit_runs, limits_text, oracle, oracle_text
 from .runs import orders, run_case, write_csv
 from .text import _fmt_order, report_text
@@ -32,7 +33,14 @@ def main(argv=None):
     parser.add_argument("--limits", action="store_true",
                         help="run only the default step, the stroke lock and the regularised branch "
                         "switch down to 1e-6 s and write their section")
+    parser.add_argument("--held", action="store_true",
+                        help="run only the regularised branch switch at several widths and write "
+                        "what it holds where a foot slides (its section)")
     args = parser.parse_args(argv)
+    if args.held:
+        report.write_section(DOC, "Events: what the regularised switch holds",
+                             held_text(held_runs()))
+        return
     if args.limits:
         text = limits_text(limit_runs()) + "\n\n" + oracle_text(oracle())
         report.write_section(DOC, "Events: two limits on the slope", text)
