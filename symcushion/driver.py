@@ -141,9 +141,9 @@ class _Recorder:
         self.bar.close()
         rows = np.concatenate(self.kept)
         # a thinned run always ends on its last row, even where the last block kept none
-        if self.keep_rows is not None and (not len(rows) or np.concatenate(
-                self.kept_idx)[-1] != self.count - 1):
-            rows = np.vstack([rows, self.last_row]) if len(rows) else self.last_row[None]
+        # (row 0 is always kept, so some block holds a kept index)
+        if self.keep_rows is not None and np.concatenate(self.kept_idx)[-1] != self.count - 1:
+            rows = np.vstack([rows, self.last_row])
         traj = _assemble(rows, self.model.n_legs, gravity)
         traj.info = {"events": self.events, "warnings": self.warnings,
                      "events_dropped": self.dropped, "rows": self.count}
