@@ -20,9 +20,11 @@ Coulomb's law responds to each half of that alternation rather than to its
 mean. The lock holds such a leg only while its foot sticks. The
 regularised switch (``smooth = true`` with a small ``rate_width``), once its
 step resolves the blend, holds the rate whose sign (2.1) takes, sliding foot
-or not: as the width falls it tends to the Filippov closure of (2.1), the
-motion both schemes approximate. Where the foot sticks that rate is the
-stroke's; where it slides the stroke moves with the foot (``held``).
+or not: as the width falls it should tend to the Filippov closure of (2.1),
+the motion both schemes approximate (on the 10° lander successive widths
+still move it by a few mm down to 1e-7 m²/s: ``held``). Where the foot
+sticks that rate is the stroke's; where it slides the stroke moves with the
+foot.
 """
 from __future__ import annotations
 
@@ -43,7 +45,7 @@ LIMIT_DTS = (1e-4, 1e-5, 1e-6)
 LIMIT_SCHEMES = (("backward", "none"), ("midpoint", "lock"))
 #: The mode of a sliding foot in a trajectory (``Trajectory.mode``).
 SLIP_MODE = 2
-#: The reference for the held stroke: the absorber's branch switch regularised
+#: The reference for the held rate of (2.1): the absorber's branch switch regularised
 #: (``smooth = true``, the blend 0.5(1 + tanh(x·ẋ/w)) of its two curves) with
 #: these (rate_width w in m²/s, Δt in s). As w → 0 the blend holds the rate
 #: of (2.1) at any force between the curves, the Filippov closure, with or
