@@ -281,3 +281,43 @@ def test_held_text_measures_each_run_from_the_last_of_its_variant():
     cells = [c.strip() for c in first.strip("|").split("|")]
     assert cells[4] == "2.00" and cells[5] == "3" and cells[6] == "1.0e-04"
     assert cells[7] == "5.0e-02"
+
+
+def test_spread_reads_each_run_at_its_first_row_at_or_after_the_time():
+    t = np.array([0.0, 0.1, 0.2, 0.3])
+    last = dict(t=t, position=np.zeros((4, 3)))
+    # a thinned run: rows at 0, 0.15 and 0.3 only
+    other = dict(t=np.array([0.0, 0.15, 0.3]),
+                 position=np.array([[0.0, 0, 0], [0.0, 3e-3, 4e-3], [1e-3, 0, 0]]))
+    d = event_order.spread([other, last], times=(0.0, 0.1, 0.3, 9.0))
+    assert d.shape == (2, 4)
+    np.testing.assert_allclose(d[0], [0.0, 5e-3, 1e-3, 1e-3])
+    np.testing.assert_allclose(d[1], 0.0)
+
+
+def test_perturbed_scene_moves_one_entry_of_the_initial_state_and_keeps_the_build():
+    base = event_order.regularized_scene("all events", 1e-5)
+    moved = event_order.perturbed_scene(1e-5, "velocity", 1, 1e-4)
+    assert moved.name == base.name
+    np.testing.assert_allclose(moved.body.velocity - base.body.velocity, [0.0, 1e-4, 0.0],
+                               atol=1e-15)
+    np.testing.assert_array_equal(moved.body.position, base.body.position)
+    with pytest.raises(ValueError, match="`field`"):
+        event_order.perturbed_scene(1e-5, "attitude", 0, 1e-6)
+    with pytest.raises(ValueError, match="`index`"):
+        event_order.perturbed_scene(1e-5, "position", 3, 1e-6)
+    with pytest.raises(ValueError, match="`size`"):
+        event_order.perturbed_scene(1e-5, "position", 0, float("nan"))
+
+
+def test_reference_text_measures_the_ladder_from_its_last_run():
+    t = np.array([0.0, 0.5])
+    rows = [dict(rate_width=w, dt=dt, final=np.array([x, 0.0, 0.0]), t=t,
+                 position=np.array([[0.0, 0, 0], [x, 0, 0]]))
+            for w, dt, x in ((1e-5, 1e-6, 0.386), (1e-7, 1e-8, 0.392))]
+    sens = [dict(label="z", size=1e-6, moved=5e-5), dict(label="v_x", size=1e-4, moved=8e-5)]
+    lines = event_order.reference_text(rows, sens, times=(0.0, 0.5)).splitlines()
+    first = next(line for line in lines if line.startswith("| 1e-05 | 1e-06"))
+    cells = [c.strip() for c in first.strip("|").split("|")]
+    assert cells[3:] == ["0.00", "6.00"]
+    assert "| z | 1e-06 m | 0.050 |" in lines and "| v_x | 0.0001 m/s | 0.080 |" in lines

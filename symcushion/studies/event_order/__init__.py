@@ -54,7 +54,12 @@ located switch against its peers (:func:`cost_check`, section "Events:
 cost", about 1 min), ``--limits`` only the default step, the stroke lock and the
 regularised branch switch on the slope lander down to Δt = 1e-6 s
 (:func:`limit_runs` and :func:`oracle`, section "Events: two limits on the
-slope", about 12 min), ``--only TEXT`` only the cases whose scene or variant
+slope", about 12 min), ``--held`` only what the regularised switch holds
+(:func:`held_runs`, section "Events: what the regularised switch holds"),
+``--reference`` only how well that reference is known, on a ladder of
+widths and steps and with its initial state perturbed (:func:`ladder_runs`,
+:func:`sensitivity_runs`, section "Events: how well the reference is known",
+about an hour), ``--only TEXT`` only the cases whose scene or variant
 contains TEXT (no output written).
 """
 from __future__ import annotations
@@ -74,6 +79,9 @@ from .limits import (LIMIT_DTS, LIMIT_SCHEMES, ORACLE_DT, ORACLE_RUNS, ORACLE_VA
                      limit_runs, limits_text, oracle, oracle_text, regularized_scene,
                      slip_at_reversals)
 from .main import main
+from .reference import (PERTURBATION_SIZES, PERTURBED, REFERENCE_LADDER, SENSITIVITY_RUN,
+                        SPREAD_TIMES, ladder_runs, perturbed_scene, reference_text,
+                        sensitivity_runs, spread)
 from .runs import (at_step, final_error, leg_reversals, orders, reversal_steps, reversals, run_case,
                    slip_fraction, write_csv)
 from .text import cost_ratios, report_text
@@ -83,14 +91,15 @@ __all__ = [
     "CONTROL_DURATION", "CONTROL_STIFFNESS", "COST_DT", "COST_ROUNDS", "DOC", "DT_CHECK",
     "DT_GRID", "DT_REF", "ERROR_KEYS", "EVENT_OPTIONS", "FIGURES", "FLAT_GAP", "HELD_RUNS",
     "LIMIT_DTS",
-    "LIMIT_SCHEMES", "LINES", "ORACLE_DT", "ORACLE_RUNS", "ORACLE_VARIANTS", "PANELS", "REVERSAL_DTS",
+    "LIMIT_SCHEMES", "LINES", "ORACLE_DT", "PERTURBATION_SIZES", "PERTURBED", "REFERENCE_LADDER",
+    "SENSITIVITY_RUN", "SPREAD_TIMES", "ORACLE_RUNS", "ORACLE_VARIANTS", "PANELS", "REVERSAL_DTS",
     "ROOT", "SETTLE_DT", "SIGMA_BAND", "SLIP_DT", "SLIP_RULES", "STARTS", "STICK_MU", "STUDIES", "STYLE",
     "SWITCH_DTS", "SWITCH_KICK", "SWITCH_REF", "VARIANTS", "at_step", "case_label",
     "control_scene", "controls", "controls_text", "cost_check", "cost_ratios", "cost_text",
-    "final_error", "final_state", "held_runs", "held_text", "interior_rates", "leg_reversals", "limit_runs", "limits_text", "main", "oracle",
-    "oracle_text", "orders", "plot", "report_text",
+    "final_error", "final_state", "held_runs", "held_text", "interior_rates", "ladder_runs", "leg_reversals", "limit_runs", "limits_text", "main", "oracle",
+    "oracle_text", "orders", "perturbed_scene", "plot", "reference_text", "report_text",
     "regularized_scene", "reversal_steps", "reversals", "run_case", "scenes", "settled",
     "slip_at_reversals",
-    "slip_fraction", "switch_case",
+    "sensitivity_runs", "slip_fraction", "spread", "switch_case",
     "switch_control", "write_csv",
 ]

@@ -22,7 +22,8 @@ regularised switch (``smooth = true`` with a small ``rate_width``), once its
 step resolves the blend, holds the rate whose sign (2.1) takes, sliding foot
 or not: as the width falls it should tend to the Filippov closure of (2.1),
 the motion both schemes approximate (on the 10° lander successive widths
-still move it by a few mm down to 1e-7 m²/s: ``held``). Where the foot
+still move it by a few mm down to 1e-7 m²/s: ``held``; how well it is known,
+width by width and step by step: ``reference``). Where the foot
 sticks that rate is the stroke's; where it slides the stroke moves with the
 foot.
 """

@@ -15,6 +15,7 @@ from .controls import controls, controls_text, cost_check, cost_text, switch_cas
 from .figure import plot
 from .held import held_runs, held_text
 from .limits import limit_runs, limits_text, oracle, oracle_text
+from .reference import ladder_runs, reference_text, sensitivity_runs
 from .runs import orders, run_case, write_csv
 from .text import _fmt_order, report_text
 
@@ -36,7 +37,15 @@ def main(argv=None):
     parser.add_argument("--held", action="store_true",
                         help="run only the regularised branch switch at several widths and write "
                         "what it holds where a foot slides (its section)")
+    parser.add_argument("--reference", action="store_true",
+                        help="run only the regularised reference on a ladder of widths and steps "
+                        "and with its initial state perturbed, and write how well it is known "
+                        "(its section; about an hour)")
     args = parser.parse_args(argv)
+    if args.reference:
+        report.write_section(DOC, "Events: how well the reference is known",
+                             reference_text(ladder_runs(), sensitivity_runs()))
+        return
     if args.held:
         report.write_section(DOC, "Events: what the regularised switch holds",
                              held_text(held_runs()))
