@@ -17,15 +17,14 @@ scene can be told apart.
 """
 from __future__ import annotations
 
-import copy
+from dataclasses import replace
 
 import numpy as np
 
 from symcushion.codegen import compiled_model
-from symcushion.scene import read_toml, scene_from_dict
 from symcushion.simulate import simulate
 
-from .cases import BUILD, CHUNK, STUDIES, _variant_data
+from .cases import BUILD, CHUNK
 from .limits import regularized_scene
 from .runs import at_step
 
@@ -57,15 +56,11 @@ def perturbed_scene(rate_width: float, field: str, index: int, size: float):
         raise ValueError(f"`index` must be 0, 1 or 2, got {index!r}.")
     if not np.isfinite(size):
         raise ValueError(f"`size` must be finite, got {size!r}.")
-    base = regularized_scene("all events", rate_width)
-    data = copy.deepcopy(_variant_data(read_toml(STUDIES / "lander_slope.toml"), "all events"))
-    data["legs"]["S"].update(smooth=True, rate_width=rate_width)
-    data["scene"]["name"] = base.name          # the same compiled step: x0 is not in it
-    entry = list(data["body"][field])
+    scene = regularized_scene("all events", rate_width)
+    entry = np.array(getattr(scene.body, field), dtype=float)
     entry[index] += size
-    data["body"][field] = entry
-    return scene_from_dict(data, f"lander_slope.toml (rate_width {rate_width:g}, "
-                                 f"{field}[{index}] + {size:g})")
+    # the same name, so the same compiled step: x0 is not in it
+    return scene.with_(body=replace(scene.body, **{field: entry}))
 
 
 def _model(scene):
