@@ -9,7 +9,10 @@ the orientation signs of (2.1); this module knows nothing of geometry.
 Each curve may carry a separate unloading branch, so that the element follows
 P = P(δ, sign δ′) as in the paper: the loading branch is active while the
 deflection grows in magnitude (x·ẋ ≥ 0), the unloading branch while it shrinks
-(x·ẋ < 0).
+(x·ẋ < 0). At zero deflection (|x| ≤ :data:`ZERO_DEFLECTION`) the element can
+only load, whatever the sign of ẋ: a foot that touches down starts at its
+unloaded pose, where the geometry's round-off leaves a deflection of order
+1e-16 of either sign.
 
 Curves evaluate on floats, on NumPy arrays (elementwise) and on CasADi SX/MX
 alike. Their parameters form a
@@ -34,6 +37,7 @@ __all__ = [
     "Crushable",
     "KINK_WIDTH",
     "RATE_WIDTH",
+    "ZERO_DEFLECTION",
 ]
 
 #: Default smoothing width of a knot, in units of the deflection (m or rad).
@@ -47,6 +51,16 @@ KINK_WIDTH = 1e-4
 #: (m²/s or rad²/s), used only with ``smooth=True``: the branch weight is
 #: 0.5(1 + tanh(x·ẋ / w)). Exact switching (``smooth=False``) is the paper's.
 RATE_WIDTH = 1e-6
+
+#: Deflection (m or rad) at and below which the exact branch test takes the
+#: loading branch whatever the sign of the rate. The unloaded pose of a strut
+#: has deflections of round-off size (1e-16) and either sign; read by x·ẋ, a
+#: touching-down foot would take the unloading branch's slope for its first
+#: contact step whenever that round-off has the sign of an extension, and a
+#: slope that wrong for one step moves where the foot first sticks by a
+#: fraction of the step (a first-order error of the whole run). 1e-12 is far
+#: above round-off and far below any deflection a curve resolves.
+ZERO_DEFLECTION = 1e-12
 
 
 def _is_symbolic(*values) -> bool:
@@ -183,10 +197,11 @@ class Curve:
         raise NotImplementedError
 
     def _weight(self, x, rate):
-        """Weight of the loading branch: 1 while x·ẋ ≥ 0 (magnitude grows)."""
+        """Weight of the loading branch: 1 while x·ẋ ≥ 0 (magnitude grows) or the
+        deflection is zero (|x| ≤ ZERO_DEFLECTION: from there it can only grow)."""
         if self.smooth:
             return 0.5 * (1 + ca.tanh(x * rate / self.rate_width))
-        return ca.if_else(x * rate >= 0, 1.0, 0.0)
+        return ca.if_else(ca.logic_or(x * rate >= 0, ca.fabs(x) <= ZERO_DEFLECTION), 1.0, 0.0)
 
     def force(self, x, rate=0.0, theta=None, branch_x=None):
         """Resistance f(x, sign ẋ) of the element.

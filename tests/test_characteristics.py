@@ -487,3 +487,24 @@ def test_crushable_random(k, f_c, ratio, t):
         assert curve.force(x_c + side * 1e-12 * abs(x_c)) == pytest.approx(-f_c, rel=1e-9)
     if abs(t - x_c) > 1e-9:                     # k_p is computed as k − (k − k_p)
         assert curve.slope(t) == pytest.approx(float(exact_slope(spec, t)), abs=1e-14 * k)
+
+
+def test_zero_deflection_loads_whatever_the_sign_of_the_rate():
+    """A strut's unloaded pose carries round-off deflections (1e-16) of either sign:
+    from there the element can only load, so the loading branch is taken even
+    where x·ẋ < 0 by that round-off; past ZERO_DEFLECTION the test is x·ẋ again."""
+    from symcushion.characteristics import ZERO_DEFLECTION
+    curve = Crushable(1e5, 2500.0, 5e3, unloading=PiecewiseLinear([-0.3, -0.03, 0.0],
+                                                                   [-500.0, -500.0, 0.0]))
+    loading, unloading = 1e5, 500.0 / 0.03
+    for x in (1.1e-16, -1.1e-16, ZERO_DEFLECTION, -ZERO_DEFLECTION):
+        for rate in (1.0, -1.0):
+            assert curve.slope(x, rate) == pytest.approx(loading, rel=1e-12)
+    for x in (10 * ZERO_DEFLECTION, -1e-3):
+        assert curve.slope(x, -np.sign(x)) == pytest.approx(unloading, rel=1e-12)
+        assert curve.slope(x, np.sign(x)) == pytest.approx(loading, rel=1e-12)
+    # the same on CasADi symbols: the step's graph takes this branch
+    xs, rs = ca.SX.sym("x"), ca.SX.sym("r")
+    fn = ca.Function("s", [xs, rs], [curve.slope(xs, rs)])
+    assert float(fn(1.1e-16, -1.0)) == pytest.approx(loading, rel=1e-12)
+    assert float(fn(-1e-3, 1.0)) == pytest.approx(unloading, rel=1e-12)

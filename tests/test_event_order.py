@@ -28,7 +28,7 @@ import pytest
 
 from symcushion.layout import state_layout
 from symcushion.scene import read_toml, scene_from_dict
-from symcushion.simulate import build_model
+from symcushion.simulate import build_model, simulate
 from symcushion.studies import event_order
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -321,3 +321,90 @@ def test_reference_text_measures_the_ladder_from_its_last_run():
     cells = [c.strip() for c in first.strip("|").split("|")]
     assert cells[3:] == ["0.00", "6.00"]
     assert "| z | 1e-06 m | 0.050 |" in lines and "| v_x | 0.0001 m/s | 0.080 |" in lines
+
+
+def test_window_error_reads_the_run_at_its_own_steps_up_to_the_window_end():
+    ref_t = np.linspace(0.0, 0.2, 2001)
+    ref_x = np.column_stack([ref_t, np.zeros_like(ref_t), np.zeros_like(ref_t)])
+    t = np.array([0.0, 0.05, 0.1, 0.15, 0.2])
+    x = np.column_stack([t, np.zeros(5), np.zeros(5)])
+    x[2, 1] = 3e-4                      # off at t = 0.1 only
+    x[4, 2] = 1e-2                      # and further off at t = 0.2
+    assert event_order.window_error(t, x, ref_t, ref_x, 0.05) == 0.0
+    assert event_order.window_error(t, x, ref_t, ref_x, 0.1) == pytest.approx(3e-4)
+    assert event_order.window_error(t, x, ref_t, ref_x, 0.2) == pytest.approx(1e-2)
+    with pytest.raises(ValueError, match="beyond the reference's end"):
+        event_order.window_error(t, x, ref_t, ref_x, 0.3)
+    with pytest.raises(ValueError, match="`until`"):
+        event_order.window_error(t, x, ref_t, ref_x, float("nan"))
+
+
+def test_window_events_count_each_kind_up_to_the_window_end():
+    events = [dict(time=5e-4, kind="touchdown", leg=1), dict(time=5e-4, kind="touchdown", leg=2),
+              dict(time=0.04, kind="slip", leg=1), dict(time=0.07, kind="stick", leg=1),
+              dict(time=0.08, message="a warning")]
+    counts = event_order.window_events(events, [0.041, 0.06], 0.05)
+    assert counts == {"touchdown": 2, "lift-off": 0, "slip": 1, "stick": 0, "stroke turn": 1}
+    assert event_order.window_events(events, [0.041, 0.06], 0.1)["stick"] == 1
+
+
+def test_window_text_fits_each_scheme_above_ten_times_the_spread():
+    times = event_order.WINDOW_TIMES
+    dts = (1e-2, 1e-3, 1e-4)
+    # second order in every window, but the last point of the last window sits at the spread
+    rows = [dict(scheme="s", dt=d, errors=[d ** 2 for _ in times],
+                 own=[d for _ in times]) for d in dts]
+    rows[-1]["errors"][-1] = 1e-8
+    result = dict(spread=[1e-10] * (len(times) - 1) + [1e-8],
+                  own_spread={"s": [1e-12 for _ in times]},
+                  events=[dict(touchdown=2, **{"lift-off": 0}, slip=1, stick=0,
+                               **{"stroke turn": 1}) for _ in times],
+                  first=[(5e-4, "touchdown", 1), (0.041, "stroke turn", None)], rows=rows)
+    fits = {f["until"]: f for f in event_order.window_orders(result)}
+    assert fits[times[0]]["fit"][0] == pytest.approx(2.0) and fits[times[0]]["fit"][2] == 3
+    assert fits[times[-1]]["fit"][0] == pytest.approx(2.0) and fits[times[-1]]["fit"][2] == 2
+    assert fits[times[0]]["own"][0] == pytest.approx(1.0) and fits[times[0]]["own"][2] == 3
+    text = event_order.window_text(result)
+    assert "0.5 ms touchdown (leg 1); 41.0 ms stroke turn." in text
+    line = next(x for x in text.splitlines()
+                if x.startswith(f"| s | t ≤ {times[0]:g} s | reference |"))
+    assert line.endswith("| 1.00e-01 | 1.00e-03 | 1.00e-05 | 2.00 (0.0001–0.01, 3) | 1.0e-07 |")
+    line = next(x for x in text.splitlines()
+                if x.startswith(f"| s | t ≤ {times[0]:g} s | own run |"))
+    assert line.endswith("| 1.00e+01 | 1.00e+00 | 1.00e-01 | 1.00 (0.0001–0.01, 3) | 1.0e-09 |")
+
+
+#: Touchdown phase of the slope lander (s): both uphill feet down and stuck,
+#: their strokes growing, before any stroke turns or foot slips (38.7 ms).
+TOUCHDOWN_PHASE = 0.035
+#: Δt of the fit (s) and the reference with its check.
+TOUCHDOWN_DTS = (1e-3, 5e-4, 2e-4, 1e-4, 5e-5)
+TOUCHDOWN_REF = (2e-6, 1e-6)
+
+
+def test_the_slope_lander_touches_down_at_second_order():
+    """Feet touching down on a crushable absorber keep second order.
+
+    The uphill feet land at t ≈ 0.5 ms from an unloaded pose whose stroke is
+    round-off (±1e-16 m); read by δ_S·δ_S′ that picked the unloading branch
+    for leg 2's first contact step, it slid for one step, stuck a fraction of
+    a step away and the run converged at about first order. The fit is the
+    largest distance of the centre of mass from the reference over the phase.
+    """
+    data = read_toml(ROOT / "studies" / "lander_slope.toml")
+    data["scene"]["duration"] = TOUCHDOWN_PHASE
+    scene = scene_from_dict(data, "lander_slope.toml (touchdown phase)")
+    model = build_model(scene)
+
+    def run(dt):
+        traj = simulate(scene.with_(dt=dt), model=model, monitor=False)
+        return np.asarray(traj.t), np.asarray(traj.position)
+
+    ref_t, ref_x = run(TOUCHDOWN_REF[0])
+    check_t, check_x = run(TOUCHDOWN_REF[1])
+    errors = np.array([event_order.window_error(*run(dt), ref_t, ref_x, TOUCHDOWN_PHASE)
+                       for dt in TOUCHDOWN_DTS])
+    ref_error = event_order.window_error(check_t, check_x, ref_t, ref_x, TOUCHDOWN_PHASE)
+    assert ref_error < REFERENCE_SHARE * errors[-1], (ref_error, errors)
+    order = np.polyfit(np.log(TOUCHDOWN_DTS), np.log(errors), 1)[0]
+    assert order >= MIN_SECOND_ORDER, (order, errors)

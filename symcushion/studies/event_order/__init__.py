@@ -59,7 +59,10 @@ slope", about 12 min), ``--held`` only what the regularised switch holds
 ``--reference`` only how well that reference is known, on a ladder of
 widths and steps and with its initial state perturbed (:func:`ladder_runs`,
 :func:`sensitivity_runs`, section "Events: how well the reference is known",
-about an hour), ``--only TEXT`` only the cases whose scene or variant
+about an hour), ``--window`` only the slope lander's schemes over its first
+0.2 s, where that reference is known, with their orders there
+(:func:`window_runs`, section "Events: orders where the reference is known",
+about 15 min), ``--only TEXT`` only the cases whose scene or variant
 contains TEXT (no output written).
 """
 from __future__ import annotations
@@ -85,6 +88,8 @@ from .reference import (PERTURBATION_SIZES, PERTURBED, REFERENCE_LADDER, SENSITI
 from .runs import (at_step, final_error, leg_reversals, orders, reversal_steps, reversals, run_case,
                    slip_fraction, write_csv)
 from .text import cost_ratios, report_text
+from .window import (WINDOW_REFERENCE, WINDOW_SCHEMES, WINDOW_TIMES, window_error, window_events,
+                     window_orders, window_runs, window_text)
 
 __all__ = [
     "BRANCH_VARIANTS", "BUILD", "CHUNK", "COLUMNS", "CONTROLS", "CONTROL_DTS", "CONTROL_DT_REF",
@@ -101,5 +106,6 @@ __all__ = [
     "regularized_scene", "reversal_steps", "reversals", "run_case", "scenes", "settled",
     "slip_at_reversals",
     "sensitivity_runs", "slip_fraction", "spread", "switch_case",
-    "switch_control", "write_csv",
+    "switch_control", "WINDOW_REFERENCE", "WINDOW_SCHEMES", "WINDOW_TIMES", "window_error",
+    "window_events", "window_orders", "window_runs", "window_text", "write_csv",
 ]

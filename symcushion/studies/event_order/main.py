@@ -17,6 +17,7 @@ from .held import held_runs, held_text
 from .limits import limit_runs, limits_text, oracle, oracle_text
 from .reference import ladder_runs, reference_text, sensitivity_runs
 from .runs import orders, run_case, write_csv
+from .window import window_runs, window_text
 from .text import _fmt_order, report_text
 
 
@@ -41,7 +42,14 @@ def main(argv=None):
                         help="run only the regularised reference on a ladder of widths and steps "
                         "and with its initial state perturbed, and write how well it is known "
                         "(its section; about an hour)")
+    parser.add_argument("--window", action="store_true",
+                        help="run only the slope lander's schemes over its first 0.2 s, where the "
+                        "regularised reference is known, and write their orders (its section)")
     args = parser.parse_args(argv)
+    if args.window:
+        report.write_section(DOC, "Events: orders where the reference is known",
+                             window_text(window_runs()))
+        return
     if args.reference:
         report.write_section(DOC, "Events: how well the reference is known",
                              reference_text(ladder_runs(), sensitivity_runs()))
