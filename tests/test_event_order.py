@@ -366,6 +366,11 @@ def test_window_text_fits_each_scheme_above_ten_times_the_spread():
     assert fits[times[0]]["own"][0] == pytest.approx(1.0) and fits[times[0]]["own"][2] == 3
     text = event_order.window_text(result)
     assert "0.5 ms touchdown (leg 1); 41.0 ms stroke turn." in text
+    assert "≥" not in text
+    # a reference that dropped events past 0.06 s: the later windows' counts are lower bounds
+    capped = event_order.window_text(dict(result, events_complete_until=0.06))
+    rows = [x for x in capped.splitlines() if x.startswith("| t ≤ ")][:len(times)]
+    assert ["≥" in x for x in rows] == [t > 0.06 for t in times]
     line = next(x for x in text.splitlines()
                 if x.startswith(f"| s | t ≤ {times[0]:g} s | reference |"))
     assert line.endswith("| 1.00e-01 | 1.00e-03 | 1.00e-05 | 2.00 (0.0001–0.01, 3) | 1.0e-07 |")
@@ -408,3 +413,16 @@ def test_the_slope_lander_touches_down_at_second_order():
     assert ref_error < REFERENCE_SHARE * errors[-1], (ref_error, errors)
     order = np.polyfit(np.log(TOUCHDOWN_DTS), np.log(errors), 1)[0]
     assert order >= MIN_SECOND_ORDER, (order, errors)
+
+
+def test_plot_window_writes_one_panel_per_window(tmp_path):
+    times = event_order.WINDOW_TIMES
+    rows = [dict(scheme=s, dt=d, errors=[d for _ in times], own=[d ** 2 for _ in times])
+            for s in ("all events", "all events (midpoint, lock)") for d in (1e-3, 1e-4)]
+    result = dict(spread=[1e-9 for _ in times], rows=rows,
+                  own_spread={s: [1e-12 for _ in times] for s in ("all events",
+                                                                  "all events (midpoint, lock)")})
+    path = tmp_path / "window.png"
+    event_order.plot_window(result, event_order.window_orders(result), times, path)
+    assert path.stat().st_size > 10_000
+    assert list(tmp_path.iterdir()) == [path]          # no temporary file left behind

@@ -62,7 +62,7 @@ widths and steps and with its initial state perturbed (:func:`ladder_runs`,
 about an hour), ``--window`` only the slope lander's schemes over its first
 0.2 s, where that reference is known, with their orders there
 (:func:`window_runs`, section "Events: orders where the reference is known",
-about 15 min), ``--only TEXT`` only the cases whose scene or variant
+figure ``figures/event_order_window.png``, about 15 min), ``--only TEXT`` only the cases whose scene or variant
 contains TEXT (no output written).
 """
 from __future__ import annotations
@@ -76,7 +76,7 @@ from .controls import (CONTROLS, CONTROL_DTS, CONTROL_DT_REF, CONTROL_DURATION, 
                        SWITCH_KICK, SWITCH_REF, control_scene, controls,
                        controls_text, cost_check, cost_text, final_state,
                        settled, switch_case, switch_control)
-from .figure import LINES, PANELS, STYLE, plot
+from .figure import LINES, PANELS, STYLE, WINDOW_STYLE, plot, plot_window
 from .held import HELD_RUNS, SIGMA_BAND, held_runs, held_text, interior_rates
 from .limits import (LIMIT_DTS, LIMIT_SCHEMES, ORACLE_DT, ORACLE_RUNS, ORACLE_VARIANTS,
                      limit_runs, limits_text, oracle, oracle_text, regularized_scene,
@@ -107,5 +107,6 @@ __all__ = [
     "slip_at_reversals",
     "sensitivity_runs", "slip_fraction", "spread", "switch_case",
     "switch_control", "WINDOW_REFERENCE", "WINDOW_SCHEMES", "WINDOW_TIMES", "window_error",
-    "window_events", "window_orders", "window_runs", "window_text", "write_csv",
+    "window_events", "window_orders", "window_runs", "window_text", "WINDOW_STYLE",
+    "plot_window", "write_csv",
 ]

@@ -12,12 +12,12 @@ from symcushion import report
 
 from .cases import DOC, FIGURES, scenes
 from .controls import controls, controls_text, cost_check, cost_text, switch_case
-from .figure import plot
+from .figure import plot, plot_window
 from .held import held_runs, held_text
 from .limits import limit_runs, limits_text, oracle, oracle_text
 from .reference import ladder_runs, reference_text, sensitivity_runs
 from .runs import orders, run_case, write_csv
-from .window import window_runs, window_text
+from .window import WINDOW_TIMES, window_orders, window_runs, window_text
 from .text import _fmt_order, report_text
 
 
@@ -47,8 +47,11 @@ def main(argv=None):
                         "regularised reference is known, and write their orders (its section)")
     args = parser.parse_args(argv)
     if args.window:
+        result = window_runs()
+        plot_window(result, window_orders(result), WINDOW_TIMES,
+                    FIGURES / "event_order_window.png")
         report.write_section(DOC, "Events: orders where the reference is known",
-                             window_text(window_runs()))
+                             window_text(result))
         return
     if args.reference:
         report.write_section(DOC, "Events: how well the reference is known",

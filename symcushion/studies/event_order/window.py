@@ -32,6 +32,7 @@ from __future__ import annotations
 import numpy as np
 
 from symcushion.codegen import compiled_model
+from symcushion.driver import MAX_EVENTS
 from symcushion.simulate import simulate
 from symcushion.studies.speed_vs_error import convergence_order
 
@@ -104,7 +105,9 @@ def window_runs(schemes=WINDOW_SCHEMES, dts=DT_GRID, progress=print) -> dict:
 
     Returns a dict: ``spread`` (m, per window: the check's distance from the
     reference), ``events`` (per window: :func:`window_events` of the
-    reference), ``first`` (the reference's events up to the first window, as
+    reference), ``events_complete_until`` (s: the time of the last event the
+    reference kept, if it dropped any; inf otherwise), ``first`` (the
+    reference's events up to the first window, as
     (time, kind, leg)), ``own_spread`` (per scheme, m per window: its own run's
     distance from its check at half the step) and ``rows`` (one per scheme and Δt: ``scheme``,
     ``dt``, ``errors`` and ``own`` in m per window, from the reference and
@@ -118,7 +121,10 @@ def window_runs(schemes=WINDOW_SCHEMES, dts=DT_GRID, progress=print) -> dict:
     ref_t, ref_x = np.asarray(ref.t), np.asarray(ref.position)
     spread = [window_error(check.t, check.position, ref_t, ref_x, T) for T in WINDOW_TIMES]
     turns = _turn_times(ref)
-    out = dict(spread=spread,
+    # the run keeps its first MAX_EVENTS events: counts past the last kept one are lower bounds
+    complete = (float(ref.events[-1]["time"]) if ref.info.get("events_dropped", 0)
+                else float("inf"))
+    out = dict(spread=spread, events_complete_until=complete,
                events=[window_events(ref.events, turns, T) for T in WINDOW_TIMES],
                first=sorted([(e["time"], e["kind"], e.get("leg")) for e in ref.events
                              if e["time"] <= WINDOW_TIMES[0] and "kind" in e]
@@ -186,16 +192,25 @@ def window_text(result) -> str:
         f"`studies/lander_slope.toml` up to t = {max(WINDOW_TIMES):g} s, each scheme's largest "
         "distance of the centre of mass from the reference's over t ≤ T (read at the scheme's "
         f"own steps). Reference: the regularised switch at w = {w:g} m²/s, Δt = {dt:g} s; its "
-        f"check: w = {w_check:g} m²/s, Δt = {dt_check:g} s.", "",
+        f"check: w = {w_check:g} m²/s, Δt = {dt_check:g} s. Plot: "
+        "`figures/event_order_window.png`.", "",
+        "![event order by window](../figures/event_order_window.png)", "",
         "The reference's spread (the check's distance from it over the window) and its "
         "events inside the window (stick and slip count each switch of a foot; a stroke turn "
         "is a reversal of a leg's stroke in contact, a branch switch or a hold):", "",
         "| window | spread (mm) | touchdowns | lift-offs | stick → slip | slip → stick "
         "| stroke turns |",
         "|---|---:|---:|---:|---:|---:|---:|"]
+    complete = result.get("events_complete_until", float("inf"))
     for until, spread, ev in zip(WINDOW_TIMES, result["spread"], result["events"]):
-        lines.append(f"| t ≤ {until:g} s | {1e3 * spread:.4f} | {ev['touchdown']} | "
-                     f"{ev['lift-off']} | {ev['slip']} | {ev['stick']} | {ev['stroke turn']} |")
+        at_least = "≥ " if until > complete else ""
+        lines.append(f"| t ≤ {until:g} s | {1e3 * spread:.4f} | "
+                     + " | ".join(f"{at_least}{ev[k]}" for k in ("touchdown", "lift-off", "slip",
+                                                                 "stick"))
+                     + f" | {ev['stroke turn']} |")
+    if np.isfinite(complete):
+        lines += ["", f"The reference keeps its first {MAX_EVENTS:,} events (up to "
+                  f"t = {complete:.4f} s); \"≥\" marks counts over windows past that."]
     first = "; ".join(f"{1e3 * t:.1f} ms {kind}" + (f" (leg {leg})" if leg is not None else "")
                       for t, kind, leg in result["first"])
     lines += ["", f"Events up to t = {WINDOW_TIMES[0]:g} s: {first}.", "",
