@@ -62,7 +62,7 @@ widths and steps and with its initial state perturbed (:func:`ladder_runs`,
 about an hour), ``--window`` only the slope lander's schemes over its first
 0.2 s, where that reference is known, with their orders there
 (:func:`window_runs`, section "Events: orders where the reference is known",
-figure ``figures/event_order_window.png``, about 15 min), ``--only TEXT`` only the cases whose scene or variant
+figure ``figures/event_order_window.png``, about 5 min), ``--only TEXT`` only the cases whose scene or variant
 contains TEXT (no output written).
 """
 from __future__ import annotations
