@@ -332,12 +332,10 @@ def build_model(scene: Scene) -> StepModel:
             S0 = ca.dot(feet[j]["force_body"], a["e_S"])
             to_load = ca.fabs(S0 - a["S_load"]) <= ca.fabs(S0 - a["S_unload"])
             release_loading[j] = to_load
-            # a foot that touches down loads: at the unloaded pose δ_S is 0 to round-off,
-            # and the chord's test δ_S·δ_S′ ≥ 0 would pick the branch by the sign of that
-            touching_down = feet[j]["contact"] < 0.5
-            rate = ca.if_else(ca.logic_or(to_load, touching_down), 1.0, -1.0) * ca.dot(
-                a["loading"], a["e_S"])
-            res.append(foot_contact(j, (ca.logic_or(locked0[j], touching_down), a["e_S"], rate)))
+            # (a foot that touches down loads by the curves' own test: at zero
+            # deflection they take the loading branch, characteristics.ZERO_DEFLECTION)
+            rate = ca.if_else(to_load, 1.0, -1.0) * ca.dot(a["loading"], a["e_S"])
+            res.append(foot_contact(j, (locked0[j], a["e_S"], rate)))
         else:
             res.append(foot_contact(j))
 
