@@ -426,3 +426,8 @@ def test_plot_window_writes_one_panel_per_window(tmp_path):
     event_order.plot_window(result, event_order.window_orders(result), times, path)
     assert path.stat().st_size > 10_000
     assert list(tmp_path.iterdir()) == [path]          # no temporary file left behind
+
+
+def test_window_runs_rejects_an_unknown_scheme_before_running():
+    with pytest.raises(ValueError, match="not cases of the slope lander"):
+        event_order.window_runs(schemes=("all events", "no such scheme"))

@@ -113,6 +113,11 @@ def window_runs(schemes=WINDOW_SCHEMES, dts=DT_GRID, progress=print) -> dict:
     ``dt``, ``errors`` and ``own`` in m per window, from the reference and
     from the scheme's own run at :data:`OWN_DT`).
     """
+    by_label = {label: scene for name, label, _, scene in scenes() if name == "lander_slope"}
+    unknown = [scheme for scheme in schemes if scheme not in by_label]
+    if unknown:
+        raise ValueError(f"`schemes` holds {unknown!r}, not cases of the slope lander; use "
+                         f"some of {sorted(by_label)}.")
     (w, dt), (w_check, dt_check) = WINDOW_REFERENCE
     ref = _run(regularized_scene("all events", w), dt, KEEP_ROWS)
     progress(f"window reference: w = {w:g}, dt = {dt:g} s")
@@ -127,15 +132,10 @@ def window_runs(schemes=WINDOW_SCHEMES, dts=DT_GRID, progress=print) -> dict:
     out = dict(spread=spread, events_complete_until=complete,
                events=[window_events(ref.events, turns, T) for T in WINDOW_TIMES],
                first=sorted([(e["time"], e["kind"], e.get("leg")) for e in ref.events
-                             if e["time"] <= WINDOW_TIMES[0] and "kind" in e]
-                            + [(float(t), "stroke turn", None) for t in turns
-                               if t <= WINDOW_TIMES[0]], key=lambda e: e[0]),
+                             if "kind" in e and e["time"] <= WINDOW_TIMES[0]]
+                            + [(float(t), "stroke turn", None)
+                               for t in turns[turns <= WINDOW_TIMES[0]]], key=lambda e: e[0]),
                rows=[], own_spread={})
-    by_label = {label: scene for name, label, _, scene in scenes() if name == "lander_slope"}
-    for scheme in schemes:
-        if scheme not in by_label:
-            raise ValueError(f"`schemes` holds {scheme!r}, which is not a case of the slope "
-                             f"lander; use one of {sorted(by_label)}.")
     for scheme in schemes:
         own = _run(by_label[scheme], OWN_DT, KEEP_ROWS)
         own_t, own_x = np.asarray(own.t), np.asarray(own.position)
