@@ -17,8 +17,8 @@ from .held import held_runs, held_text
 from .limits import limit_runs, limits_text, oracle, oracle_text
 from .reference import ladder_runs, reference_text, sensitivity_runs
 from .runs import orders, run_case, write_csv
-from .window import WINDOW_TIMES, window_orders, window_runs, window_text
 from .text import _fmt_order, report_text
+from .window import WINDOW_TIMES, window_orders, window_runs, window_text
 
 
 def main(argv=None):

@@ -31,14 +31,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from symcushion.codegen import compiled_model
 from symcushion.driver import MAX_EVENTS
-from symcushion.simulate import simulate
 from symcushion.studies.speed_vs_error import convergence_order
 
-from .cases import BUILD, CHUNK, DT_GRID, scenes
-from .limits import regularized_scene
-from .runs import at_step, reversal_steps
+from .cases import DT_GRID, scenes
+from .limits import _trajectory, regularized_scene
+from .runs import reversal_steps
 
 #: Ends of the windows (s): the uphill feet's touchdown, both stuck, strokes growing
 #: (to 0.035 s); their first slips and stroke turns (to 0.05 s); the downhill legs'
@@ -59,9 +57,8 @@ KEEP_ROWS = 20_000
 
 
 def _run(scene, dt, keep_rows=None):
-    model = compiled_model(scene, BUILD / scene.name, steps=CHUNK)
-    return simulate(scene.with_(dt=dt, duration=max(WINDOW_TIMES)),
-                    model=at_step(model, scene, dt), monitor=False, keep_rows=keep_rows)
+    """A compiled run of ``scene`` up to the last window (``limits._trajectory``)."""
+    return _trajectory(scene.with_(duration=max(WINDOW_TIMES)), dt, keep_rows)
 
 
 def window_error(t, position, ref_t, ref_position, until: float) -> float:
