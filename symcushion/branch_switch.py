@@ -34,17 +34,42 @@ Only the axial element's switch is located; a leg whose axial curve has no
 unloading branch, or a smooth one (no jump), gets nothing, and the step is
 then the velocity-Verlet step unchanged.
 
+With ``events = "branch"`` the touchdown step also splits the CONTACT step
+of a leg at its switch. (B1) puts the impulse right, but a foot that
+slides while its force drops (the slope lander: the force of an uphill
+leg falls from 2.7 kN to 0.56 kN as its foot slides) then jumps, being
+massless, to its equilibrium on the new curve: where it lands depends on
+where it started, so one contact step over the whole of Δt puts it O(Δt)
+wrong, and that error stays in the foot's position. The split step runs
+the contact step on the stored curve up to t* (the body at its drift
+position there), the jump at t* with the body held (l = 0), and the rest of
+the step on the new curve from where the foot landed. θ is then located
+inside the step, θ ∈ [0, 1] (:func:`switch_in_step`):
+
+    θ = s₀ / (s₀ − s₁),   s₁ = 2 s_½ − s₀,                          (B2)
+
+s₀ as above and s_½ the switching function at the middle of the step, at
+the middle of the foot's path on the stored curve (a contact step over the
+whole step on that curve) with the drift's middle velocities, which are
+exact to O(Δt²) in velocity Verlet. s follows the sliding foot: with the
+foot held at its start point instead, θ is off by a fixed fraction of the
+step (1 % on the slope lander), an O(Δt) error in t*. The step splits when
+the branch of s₁ differs from the stored one, and (B1) then uses θ of
+(B2).
+
 This module must not change the contact step, the drift or the forces; it
-returns the kick's correction only.
+returns the kick's correction and the switch's location only.
 """
 from __future__ import annotations
 
 import casadi as ca
 
+from .characteristics import ZERO_DEFLECTION
 from .contact_guards import at_least, at_most
 from .stroke_lock import axial_branches
 
-__all__ = ["locates_switch", "branch_flip", "branch_switch_kick"]
+__all__ = ["locates_switch", "stored_branch", "switch_in_step", "branch_flip",
+           "branch_switch_kick"]
 
 #: Smallest |2(s₀ − s_½)| (m/s) that θ divides by: a stroke rate that does
 #: not change over the step has no zero in it, and the quotient is clipped
@@ -64,6 +89,53 @@ def _axial_loading(delta_S, rate):
     return ca.if_else(delta_S * rate >= 0, 1.0, 0.0)
 
 
+def stored_branch(strut_fns, p_leg, rho, F):
+    """1 where the force ``F`` (body frame) is on the loading curve at ``rho``: the
+    curve whose axial force is nearer to F·e_S."""
+    ax = axial_branches(strut_fns, p_leg, rho)
+    S = ca.dot(F, ax["e_S"])
+    return ca.if_else(ca.fabs(S - ax["S_load"]) <= ca.fabs(S - ax["S_unload"]), 1.0, 0.0)
+
+
+def _rate_at(strut_fns, rho, kin):
+    """The switching function s = e_S·ρ̇ of the world point under the foot ``rho``,
+    with the body's ``R``, ``v`` (world) and ``omega`` (body) of ``kin``."""
+    e_S = strut_fns["strut_geometry"].call(dict(r=rho))["e_S"]
+    return ca.dot(e_S, -ca.cross(kin["omega"], rho) - kin["R"].T @ kin["v"])
+
+
+def switch_in_step(strut_fns, rho0, rho_mid, stored_loading, start, mid):
+    """Whether the axial element switches branch inside the step, and when (B2).
+
+    Parameters
+    ----------
+    strut_fns : dict of casadi.Function
+        The leg's ``strut_geometry``.
+    rho0, rho_mid : casadi.SX, shape (3,)
+        The foot at the start of the step and in its middle (body frame, m).
+    stored_loading : casadi.SX
+        1 where the force at the start is on the loading curve.
+    start, mid : dict
+        The body's ``R`` (3×3), ``v`` (m/s, world) and ``omega`` (rad/s, body)
+        at the start and in the middle of the step.
+
+    Returns
+    -------
+    dict
+        ``switches`` (1 where s₁ = 2 s_½ − s₀ selects the other curve than the
+        stored one), ``theta`` ((t* − t_n)/h in [0, 1]), ``s0`` and ``s1`` (m/s).
+    """
+    s0 = _rate_at(strut_fns, rho0, start)
+    s1 = 2 * _rate_at(strut_fns, rho_mid, mid) - s0
+    delta_S = strut_fns["strut_geometry"].call(dict(r=rho0))["delta_S"]
+    # the curves' own test x·ẋ ≥ 0, loading at zero deflection (characteristics)
+    end_loading = ca.logic_or(ca.fabs(delta_S) <= ZERO_DEFLECTION, delta_S * s1 >= 0)
+    gap = s0 - s1
+    theta = s0 / ca.if_else(ca.fabs(gap) > RATE_FLOOR, gap, RATE_FLOOR)
+    return dict(switches=end_loading != stored_loading,
+                theta=at_most(at_least(theta, 0.0), 1.0), s0=s0, s1=s1)
+
+
 def branch_flip(strut_fns, p_leg, rho0, F0, l, h, stored_loading=None):
     """1 where this step's end force is on the other axial branch than the stored force.
 
@@ -77,9 +149,7 @@ def branch_flip(strut_fns, p_leg, rho0, F0, l, h, stored_loading=None):
     e_S = ax["e_S"]
     new_loading = _axial_loading(ax["delta_S"], ca.dot(e_S, l / h))
     if stored_loading is None:
-        S0 = ca.dot(F0, e_S)
-        stored_loading = ca.if_else(ca.fabs(S0 - ax["S_load"]) <= ca.fabs(S0 - ax["S_unload"]),
-                                    1.0, 0.0)
+        stored_loading = stored_branch(strut_fns, p_leg, rho0, F0)
     return (new_loading != stored_loading,
             dict(ax, stored_loading=stored_loading, new_loading=new_loading))
 
@@ -100,7 +170,10 @@ def branch_switch_kick(strut_fns, p_leg, foot, step):
         (the same at the end), ``active`` (1 where the foot was in contact at
         the start and stays in contact at the end), optionally
         ``stored_loading`` (1 where the stored force is on the loading curve,
-        when the state keeps the branch; else it is read from the force).
+        when the state keeps the branch; else it is read from the force),
+        optionally ``split`` (a dict with ``use`` and ``theta``: the contact
+        step was split at the switch located by (B2); (B1) then takes that θ
+        where ``use`` is set, and nothing elsewhere).
     step : dict
         ``h`` (s), ``R`` and ``R1`` (3×3, attitude at start and end), ``v``
         (3, m/s, world) and ``omega`` (3, rad/s, body) at the start, ``l``
@@ -130,6 +203,10 @@ def branch_switch_kick(strut_fns, p_leg, foot, step):
     gap = 2 * (s0 - s_half)
     safe = ca.if_else(ca.fabs(gap) > RATE_FLOOR, gap, RATE_FLOOR)
     theta = at_most(at_least(s0 / safe, -0.5), 0.5)
+    if foot.get("split") is not None:
+        # the contact step was split at the switch of (B2): its θ, in [0, 1]
+        switched = ca.logic_and(foot["active"], foot["split"]["use"])
+        theta = foot["split"]["theta"]
     weight = ca.if_else(switched, theta - 0.5, 0.0)                         # (B1)
     dforce = weight * (step["R"] @ F0 - step["R1"] @ foot["F1"])
     dtorque = weight * (ca.cross(rho0, F0) - ca.cross(foot["rho1"], foot["F1"]))

@@ -26,6 +26,17 @@ leg path, isotropic K and small angles it is exact: it decays the angle φ
 between the force and the motion by e^(−z) as the relaxation
 dφ/dl = −sin φ/s does.
 
+The step works in the body frame of the END of the step, and the plane
+is fixed in the world: a body that turns by ΔR over the step turns the
+cone under the start force. The start force's direction in (M1) is
+therefore carried into the end frame, P_c ← P_c + (1 − α_c)(T − I) P_c with
+T = R₁ᵀR₀ the body's rotation over the step (the input ``turn`` is T − I;
+the part of the step before the crossing does not slip). Without it the rule mixes two frames:
+an O(ω Δt) error in the slip direction in every slipping step, first order
+over a slide (the slope lander, docs/speed-vs-error.md, "Events: the
+sliding foot's frame"). ``turn`` defaults to zero (a body that does not
+turn, or the rule alone).
+
 It takes the backward-Euler step's outputs as the start of its Newton
 iteration on the direction angle and falls back to them where the rule has
 no solution, and keeps stick and lift-off as that step decides them. It
@@ -129,7 +140,7 @@ def _end_force(P_t, Dp, n, mu, d):
     return gamma, P, ca.logic_and(ok, ca.logic_and(gamma >= 0, ca.dot(n, P) > 0))
 
 
-def midpoint_slip(P0, Dp, n, l, mu, be):
+def midpoint_slip(P0, Dp, n, l, mu, be, turn=None):
     """The slip of the fitted midpoint rule (M1), from a backward-Euler step's outputs.
 
     Parameters
@@ -147,6 +158,10 @@ def midpoint_slip(P0, Dp, n, l, mu, be):
     be : dict of casadi.SX
         The implicit step's outputs ``delta``, ``P``, ``k`` (the slip g, m)
         and ``contact`` for the same inputs.
+    turn : casadi.SX, shape (3, 3), optional
+        T − I, T = R₁ᵀR₀ the rotation from the body frame of the start of the
+        step to that of its end, in which every other argument is given.
+        Default zero.
 
     Returns
     -------
@@ -163,6 +178,9 @@ def midpoint_slip(P0, Dp, n, l, mu, be):
     z = safe_div((1.0 - alpha) * ca.norm_2(_tangential(Dl, n)), mu * N_c)
     z = ca.if_else(mu * N_c > 0, at_most(at_least(z, 0.0), Z_MAX), Z_MAX)
     theta = fitted_theta(z)
+    if turn is not None:
+        # the start force in the end frame: the plane is fixed in the world
+        P_c = P_c + (1.0 - alpha) * ca.mtimes(turn, P_c)
     P_c_tau = _tangential(P_c, n)
 
     psi = ca.SX.sym("psi")
@@ -189,13 +207,14 @@ def midpoint_slip(P0, Dp, n, l, mu, be):
                 k=ca.if_else(use, g, be["k"]), contact=be["contact"])
 
 
-#: Inputs: the contact step's own, then its backward-Euler outputs (suffix _be).
-_INPUTS = ("P0", "Dp", "n", "l", "mu", "delta_be", "P_be", "k_be", "contact_be")
+#: Inputs: the contact step's own, its backward-Euler outputs (suffix _be), then the
+#: body's turn over the step (T − I; zero, its default, for no turn).
+_INPUTS = ("P0", "Dp", "n", "l", "mu", "delta_be", "P_be", "k_be", "contact_be", "turn")
 _OUTPUTS = ("delta", "P", "k", "contact")
 
 
 _SHAPES = dict(P0=(3, 1), Dp=(3, 3), n=(3, 1), l=(3, 1), mu=(1, 1), delta_be=(3, 1),
-               P_be=(3, 1), k_be=(3, 1), contact_be=(1, 1))
+               P_be=(3, 1), k_be=(3, 1), contact_be=(1, 1), turn=(3, 3))
 
 
 @functools.lru_cache(maxsize=None)
@@ -203,7 +222,7 @@ def _build():
     """The SX Function ``contact_slip_midpoint`` of :func:`midpoint_slip`."""
     sym = {name: ca.SX.sym(name, *_SHAPES[name]) for name in _INPUTS}
     be = {key: sym[key + "_be"] for key in _OUTPUTS}
-    out = midpoint_slip(sym["P0"], sym["Dp"], sym["n"], sym["l"], sym["mu"], be)
+    out = midpoint_slip(sym["P0"], sym["Dp"], sym["n"], sym["l"], sym["mu"], be, sym["turn"])
     return ca.Function("contact_slip_midpoint", [sym[k] for k in _INPUTS],
                        [out[k] for k in _OUTPUTS], list(_INPUTS), list(_OUTPUTS), {"cse": True})
 
@@ -223,7 +242,7 @@ def _build_call():
     # (symcushion.contact): the same sums in the same order as the SX graph
     opts = {"ad_weight": 0, "ad_weight_sp": 0}
     sym = [ca.MX.sym(name, *_SHAPES[name]) for name in _INPUTS]
-    keep = ca.Function("contact_slip_midpoint_keep", sym, sym[5:], list(_INPUTS),
+    keep = ca.Function("contact_slip_midpoint_keep", sym, sym[5:9], list(_INPUTS),
                        list(_OUTPUTS), opts)
     switch = ca.Function.conditional("contact_slip_midpoint_switch", [keep, full], keep, opts)
     k_be, contact_be = sym[7], sym[8]
@@ -234,11 +253,12 @@ def _build_call():
                        dict(opts, never_inline=True))
 
 
-def midpoint_slip_call(P0, Dp, n, l, mu, be):
+def midpoint_slip_call(P0, Dp, n, l, mu, be, turn=None):
     """:func:`midpoint_slip` as a call node of the shared ``contact_slip_midpoint`` Function.
 
     Same arguments and returned dict; ``be`` is the dict of
     ``symcushion.contact.contact_step_call('implicit', ...)``.
     """
-    out = _build_call()(P0, Dp, n, l, mu, be["delta"], be["P"], be["k"], be["contact"])
+    turn = ca.DM.zeros(3, 3) if turn is None else turn
+    out = _build_call()(P0, Dp, n, l, mu, be["delta"], be["P"], be["k"], be["contact"], turn)
     return dict(zip(_OUTPUTS, out))

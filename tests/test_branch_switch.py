@@ -19,6 +19,7 @@ import pytest
 
 import symcushion.touchdown as touchdown
 from symcushion.optimise import study_from_dict
+from symcushion.layout import state_layout
 from symcushion.scene import SceneError, load_scene, read_toml, scene_from_dict
 from symcushion.simulate import build_model, initial_state, simulate
 from symcushion.studies import event_order
@@ -127,6 +128,58 @@ def test_bad_events_is_rejected():
     data["scene"]["events"] = "splitt"
     with pytest.raises(SceneError, match="events"):
         scene_from_dict(data, "bad.toml")
+
+
+#: The slope lander's leg 2 drops from its loading curve (2.7 kN) to its
+#: unloading curve (0.56 kN) at t ≈ 48.35 ms while its foot slides: the state
+#: a little before (s), the fine step around it (s) and the steps of the fit (s).
+DROP_BEFORE, DROP_FINE, DROP_DTS = 0.048, 1e-6, (4e-5, 2e-5, 1e-5)
+#: Leg 2's force (N) below which it is on its unloading curve.
+DROP_FORCE = 1000.0
+
+
+def _drop_local_errors():
+    """Errors of one step that holds leg 2's drop in its middle, against steps of
+    ``DROP_FINE`` over the same time: body velocity (m/s) and leg 2's foot (m)."""
+    data = read_toml(ROOT / "studies" / "lander_slope.toml")
+    data["scene"].update(slip="midpoint", events="branch", duration=DROP_BEFORE, dt=1e-4)
+    scene = scene_from_dict(data, "lander_slope.toml (before the drop)")
+    model = build_model(scene)
+    p = model.default_p
+    layout = state_layout(len(scene.legs))
+    states = [np.asarray(simulate(scene, model=model, monitor=False).info["final_state"],
+                         dtype=float).ravel()]
+    for _ in range(round(2 * max(DROP_DTS) / DROP_FINE) + 400):
+        states.append(np.asarray(model.step(states[-1], p, DROP_FINE)[0]).ravel())
+    force = [np.linalg.norm(layout.unpack(x)["force_body"][2]) for x in states]
+    drop = next(k for k, f in enumerate(force) if f < DROP_FORCE)
+    assert force[drop - 1] > 2000.0                        # one jump, inside the fine step
+    velocity, foot = [], []
+    for dt in DROP_DTS:
+        n = round(dt / DROP_FINE)
+        start, ref = layout.unpack(states[drop - n // 2]), layout.unpack(states[drop - n // 2 + n])
+        one = layout.unpack(np.asarray(model.step(states[drop - n // 2], p, dt)[0]).ravel())
+        assert np.linalg.norm(start["force_body"][2]) > 2000.0 > np.linalg.norm(
+            one["force_body"][2])
+        velocity.append(np.linalg.norm(np.asarray(one["velocity"]) - ref["velocity"]))
+        foot.append(np.linalg.norm(np.asarray(one["foot"][2]) - ref["foot"][2]))
+    return np.array(velocity), np.array(foot)
+
+
+def test_a_sliding_foot_drops_onto_its_unloading_curve_at_second_order():
+    """The contact step split at the switch (B2).
+
+    As its force drops the sliding foot jumps to its equilibrium on the
+    unloading curve. One contact step over the whole of Δt started that jump
+    from the wrong place (the foot's position at t_n, not at t*), and located
+    t* from the world point under the foot at t_n (off by a fixed share of
+    the step): both O(Δt) in a step that happens once, first order. The split
+    step's errors in that step are O(Δt²) or better.
+    """
+    velocity, foot = _drop_local_errors()
+    for name, errors in (("velocity", velocity), ("foot", foot)):
+        order = np.polyfit(np.log(DROP_DTS), np.log(errors), 1)[0]
+        assert order >= MIN_SECOND_ORDER, (name, order, errors)
 
 
 #: The optimiser's bound on AD against central differences (tests/test_optimise.py).

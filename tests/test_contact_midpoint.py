@@ -20,7 +20,8 @@ from symcushion.contact import contact_step
 from symcushion.contact_midpoint import THETA_SERIES, _build, fitted_theta
 from symcushion.optimise import study_from_dict
 from symcushion.scene import SceneError, load_scene, read_toml, scene_from_dict
-from symcushion.simulate import build_model, initial_state
+from symcushion.layout import state_layout
+from symcushion.simulate import build_model, initial_state, simulate
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -136,6 +137,66 @@ def test_local_order_on_a_lander_leg():
     order = {rule: np.polyfit(np.log(hs[1:]), np.log(e[1:]), 1)[0] for rule, e in errors.items()}
     assert 1.7 <= order["backward"] <= 2.3, (order, errors)
     assert order["midpoint"] >= 2.7, (order, errors)            # 2.9 measured
+
+
+#: The slope lander at 45 ms: both uphill feet slide while the body tips.
+SLIDING_STATE_TIME = 0.045
+#: Step lengths of the local-order fit (s) and the sub-steps of its reference.
+LOCAL_DTS, LOCAL_SUBSTEPS = (1.6e-4, 8e-5, 4e-5), 64
+
+
+def _local_foot_errors(slip):
+    """Distance across their slide of the sliding uphill feet after one step of each
+    ``LOCAL_DTS`` from ``LOCAL_SUBSTEPS`` steps over the same time, from one state of
+    the slope lander.
+
+    Across the slide: an error in the slip's direction stays in the foot's
+    position; one along it (the slip's length, O(Δt²) locally for a force law
+    linearised at the start of the step) does not, as the next step's exact
+    start force pulls the foot back onto the cone.
+    """
+    data = read_toml(ROOT / "studies" / "lander_slope.toml")
+    data["scene"].update(slip=slip, duration=SLIDING_STATE_TIME, dt=1e-4)
+    scene = scene_from_dict(data, f"lander_slope.toml ({slip})")
+    model = build_model(scene)
+    p = model.default_p
+    x0 = np.asarray(simulate(scene, model=model, monitor=False).info["final_state"],
+                    dtype=float).ravel()
+    layout = state_layout(len(scene.legs))
+    assert np.all(layout.unpack(x0)["contact"][1:3] == 1.0)           # both uphill feet down
+
+    def feet(x):
+        return np.asarray(layout.unpack(x)["foot"])[1:3]
+
+    errors = []
+    for dt in LOCAL_DTS:
+        x_fine = x0
+        for _ in range(LOCAL_SUBSTEPS):
+            x_fine = np.asarray(model.step(x_fine, p, dt / LOCAL_SUBSTEPS)[0]).ravel()
+        x_one = np.asarray(model.step(x0, p, dt)[0]).ravel()
+        slide = feet(x_fine) - feet(x0)
+        along = slide / np.linalg.norm(slide, axis=1, keepdims=True)
+        miss = feet(x_one) - feet(x_fine)
+        across = miss - np.sum(miss * along, axis=1, keepdims=True) * along
+        errors.append(np.max(np.linalg.norm(across, axis=1)))
+    return np.array(errors)
+
+
+def test_sliding_feet_of_a_turning_body_move_at_third_order_locally():
+    """The slip direction of (M1) in the frame of the end of the step.
+
+    The lander tips while its uphill feet slide: the body turns under the
+    plane. Mixing the start force of the start frame with the end force of
+    the end frame turned the slip direction by O(ωΔt) in every step: a local
+    foot error O(Δt²), first order over the slide. With the start force
+    carried into the end frame the local error is O(Δt³).
+    """
+    errors = _local_foot_errors("midpoint")
+    order = np.polyfit(np.log(LOCAL_DTS), np.log(errors), 1)[0]
+    assert order >= 2.7, (order, errors)
+    # backward Euler's own direction is first order: its local error O(Δt²)
+    errors_be = _local_foot_errors("backward")
+    assert np.all(errors_be > 10 * errors), (errors_be, errors)
 
 
 def test_end_force_obeys_coulomb_and_the_flow_rule():
