@@ -33,8 +33,8 @@ therefore carried into the end frame, P_c ← P_c + (1 − α_c)(T − I) P_c wi
 T = R₁ᵀR₀ the body's rotation over the step (the input ``turn`` is T − I;
 the part of the step before the crossing does not slip). Without it the rule mixes two frames:
 an O(ω Δt) error in the slip direction in every slipping step, first order
-over a slide (the slope lander, docs/speed-vs-error.md, "Events: the
-sliding foot's frame"). ``turn`` defaults to zero (a body that does not
+over a slide (the slope lander, docs/speed-vs-error.md, "The midpoint slip
+rule mixed two frames"). ``turn`` defaults to zero (a body that does not
 turn, or the rule alone).
 
 It takes the backward-Euler step's outputs as the start of its Newton
