@@ -66,8 +66,8 @@ def plot(rows, fits, path):
     fig.suptitle("Event-order study: implicit contact step, Verlet body step; each variant "
                  "removes some of the lander's events (none: all three)\n"
                  "thin solid: default; dashed, open markers: midpoint slip rule; dotted: midpoint "
-                 "and events = 'branch' (the kick at the located branch switch); thick solid: "
-                 "midpoint and events = 'lock' (the switch and the stroke lock)\n"
+                 "and events = 'branch' (the located switch: its kick and the split contact step);\n"
+                 "thick solid: midpoint and events = 'lock' (the switch and the stroke lock); "
                  "slope panels: the branch and lock rows only", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
