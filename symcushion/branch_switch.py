@@ -24,6 +24,8 @@ strut axis at the middle foot point ρ + l/2 (exact to O(h²)):
 θ = s₀ / (2(s₀ − s_½)). The node forces switch branch between the middle
 of the previous step and the middle of this one, so θ lies in [−½, ½]; a
 negative θ returns the part of the jump the previous step's kick missed.
+That θ is the stroke lock's (``events = "lock"``), for its direct switches;
+with ``events = "branch"`` every located switch takes θ of (B2) below.
 With θ right to O(h) the impulse is right to O(h²), a local error made
 once per switch: second order. The drift of the switching step keeps the
 start force (its error is O(h²) once per switch).
@@ -71,10 +73,11 @@ from .stroke_lock import axial_branches
 __all__ = ["locates_switch", "stored_branch", "switch_in_step", "branch_flip",
            "branch_switch_kick"]
 
-#: Smallest |2(s₀ − s_½)| (m/s) that θ divides by: a stroke rate that does
-#: not change over the step has no zero in it, and the quotient is clipped
-#: to [−½, ½] anyway; the floor only keeps the division finite (and its
-#: derivative) where the branches of the node forces differ all the same.
+#: Smallest |2(s₀ − s_½)| and |s₀ − s₁| (m/s) that θ divides by, its sign kept:
+#: a stroke rate that does not change over the step has no zero in it, and the
+#: quotient is clipped to [−½, ½] (B1) or [0, 1] (B2) anyway; the floor only
+#: keeps the division finite (and its derivative) where the branches of the
+#: node forces differ all the same.
 RATE_FLOOR = 1e-12
 
 
@@ -97,11 +100,18 @@ def stored_branch(strut_fns, p_leg, rho, F):
     return ca.if_else(ca.fabs(S - ax["S_load"]) <= ca.fabs(S - ax["S_unload"]), 1.0, 0.0)
 
 
+def _floored(gap):
+    """``gap`` with its magnitude at least :data:`RATE_FLOOR`, its sign kept."""
+    return ca.if_else(ca.fabs(gap) > RATE_FLOOR, gap,
+                      ca.if_else(gap >= 0, RATE_FLOOR, -RATE_FLOOR))
+
+
 def _rate_at(strut_fns, rho, kin):
     """The switching function s = e_S·ρ̇ of the world point under the foot ``rho``,
-    with the body's ``R``, ``v`` (world) and ``omega`` (body) of ``kin``."""
+    with the body's ``R``, ``v`` (world) and ``omega`` (body) of ``kin``: the rate
+    whose sign selects the branch in (2.1)."""
     e_S = strut_fns["strut_geometry"].call(dict(r=rho))["e_S"]
-    return ca.dot(e_S, -ca.cross(kin["omega"], rho) - kin["R"].T @ kin["v"])
+    return ca.dot(e_S, -ca.cross(kin["omega"], rho) - kin["R"].T @ kin["v"])   # (2.1)
 
 
 def switch_in_step(strut_fns, rho0, rho_mid, stored_loading, start, mid):
@@ -130,8 +140,7 @@ def switch_in_step(strut_fns, rho0, rho_mid, stored_loading, start, mid):
     delta_S = strut_fns["strut_geometry"].call(dict(r=rho0))["delta_S"]
     # the curves' own test x·ẋ ≥ 0, loading at zero deflection (characteristics)
     end_loading = ca.logic_or(ca.fabs(delta_S) <= ZERO_DEFLECTION, delta_S * s1 >= 0)
-    gap = s0 - s1
-    theta = s0 / ca.if_else(ca.fabs(gap) > RATE_FLOOR, gap, RATE_FLOOR)
+    theta = s0 / _floored(s0 - s1)                                          # (B2)
     return dict(switches=end_loading != stored_loading,
                 theta=at_most(at_least(theta, 0.0), 1.0), s0=s0, s1=s1)
 
@@ -200,9 +209,7 @@ def branch_switch_kick(strut_fns, p_leg, foot, step):
     s0 = ca.dot(e_S, -ca.cross(step["omega"], rho0) - step["R"].T @ step["v"])
     e_mid = strut_fns["strut_geometry"].call(dict(r=rho0 + l / 2))["e_S"]
     s_half = ca.dot(e_mid, l / h)
-    gap = 2 * (s0 - s_half)
-    safe = ca.if_else(ca.fabs(gap) > RATE_FLOOR, gap, RATE_FLOOR)
-    theta = at_most(at_least(s0 / safe, -0.5), 0.5)
+    theta = at_most(at_least(s0 / _floored(2 * (s0 - s_half)), -0.5), 0.5)
     if foot.get("split") is not None:
         # the contact step was split at the switch of (B2): its θ, in [0, 1]
         switched = ca.logic_and(foot["active"], foot["split"]["use"])

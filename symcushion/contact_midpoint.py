@@ -26,12 +26,17 @@ leg path, isotropic K and small angles it is exact: it decays the angle φ
 between the force and the motion by e^(−z) as the relaxation
 dφ/dl = −sin φ/s does.
 
-The step works in the body frame of the END of the step, and the plane
-is fixed in the world: a body that turns by ΔR over the step turns the
-cone under the start force. The start force's direction in (M1) is
-therefore carried into the end frame, P_c ← P_c + (1 − α_c)(T − I) P_c with
-T = R₁ᵀR₀ the body's rotation over the step (the input ``turn`` is T − I;
-the part of the step before the crossing does not slip). Without it the rule mixes two frames:
+The forces P₀, P_c and P are the leg's, in body axes; the step reads the
+cone and the slip in the body frame of the END of the step, while the
+plane and the slip's direction are fixed in the world. A force at time t
+points, in the end frame, along R₁ᵀR(t) times its body components. So the
+direction of (M1) takes P_c carried into the end frame by the body's
+rotation from the crossing to the end, to first order
+
+    P_c ← P_c + (1 − α_c)(T − I) P_c,   T = R₁ᵀR₀,                       (M1)
+
+T the body's rotation over the step (the input ``turn`` is T − I) and
+α_c the crossing's place in the step. Without it the rule mixes two frames:
 an O(ω Δt) error in the slip direction in every slipping step, first order
 over a slide (the slope lander, docs/speed-vs-error.md, "The midpoint slip
 rule mixed two frames"). ``turn`` defaults to zero (a body that does not
@@ -41,7 +46,7 @@ It takes the backward-Euler step's outputs as the start of its Newton
 iteration on the direction angle and falls back to them where the rule has
 no solution, and keeps stick and lift-off as that step decides them. It
 must not change the backward-Euler step, validate user input, or know
-about bodies and time steps (the caller passes l).
+about bodies and time steps (the caller passes l and the turn).
 """
 from __future__ import annotations
 
@@ -160,8 +165,8 @@ def midpoint_slip(P0, Dp, n, l, mu, be, turn=None):
         and ``contact`` for the same inputs.
     turn : casadi.SX, shape (3, 3), optional
         T − I, T = R₁ᵀR₀ the rotation from the body frame of the start of the
-        step to that of its end, in which every other argument is given.
-        Default zero.
+        step to that of its end, in which ``n`` and ``l`` are given. Default
+        zero.
 
     Returns
     -------
@@ -179,7 +184,7 @@ def midpoint_slip(P0, Dp, n, l, mu, be, turn=None):
     z = ca.if_else(mu * N_c > 0, at_most(at_least(z, 0.0), Z_MAX), Z_MAX)
     theta = fitted_theta(z)
     if turn is not None:
-        # the start force in the end frame: the plane is fixed in the world
+        # the start force in the end frame: the plane is fixed in the world (M1)
         P_c = P_c + (1.0 - alpha) * ca.mtimes(turn, P_c)
     P_c_tau = _tangential(P_c, n)
 

@@ -123,10 +123,12 @@ class StepModel:
     params : ParamLayout
         The layout of ``p`` (read and write its entries by name).
     gated : dict
-        With ``events = "lock"``: the work of the stroke lock that the step
-        calls only in the steps that need it, by call name (the SHAKE of the
-        first kick, the RATTLE and holding solves of the second), as the
-        SX Functions evaluated then; empty otherwise.
+        The work that the step calls only in the steps that need it, by call
+        name, as the SX Functions evaluated then: with ``events = "lock"``
+        the stroke lock's (the SHAKE of the first kick, the RATTLE and
+        holding solves of the second), with ``events = "branch"`` each
+        lockable leg's contact step split at its switch
+        (``touchdown_split_{j}``); empty otherwise.
     """
 
     step: ca.Function
@@ -179,7 +181,8 @@ class StepModel:
 
     def graph_size(self) -> dict:
         """Size of the step graph: SX instructions and nodes, and ``gated``: the
-        instructions of the lock's calls (:attr:`gated`), run only when a leg locks."""
+        instructions of the gated calls (:attr:`gated`), run only in the steps that
+        need them."""
         return {"instructions": self.step.n_instructions(), "nodes": self.step.n_nodes(),
                 "gated": sum(f.n_instructions() for f in self.gated.values())}
 
@@ -251,7 +254,7 @@ def build_model(scene: Scene) -> StepModel:
         return vel_h, omega_h, pos1, quat1 / ca.norm_2(quat1)
 
     drift = kick_drift(force, torque)
-    gated = {}                      # the lock's calls, by name: the Functions they may skip
+    gated = {}                      # the gated calls, by name: the Functions they may skip
     if lockable:
         # SHAKE: a locked leg's stroke at the end of the drift equals its stroke at the
         # start; built only into the call that runs when some leg is locked
@@ -397,7 +400,8 @@ def build_model(scene: Scene) -> StepModel:
             on = [ca.if_else(sw["use"], a, b) for a, b in zip(parts, plain_in)]
             got, gated[f"touchdown_split_{j}"] = skip_unless(
                 f"touchdown_split_{j}", candidate, [X, p, h] + plain_in, [X, p, h] + plain,
-                on + [sw["use"], sw["theta"]], plain_in + [ca.SX(0), ca.SX(0.5)])
+                on + [sw["use"], ca.if_else(sw["use"], sw["theta"], 0.5)],
+                plain_in + [ca.SX(0), ca.SX(0.5)])
             out = dict(zip(keys, got[:len(keys)]))
             l, n_b, normal_w, v_rel, rho_last = got[len(keys):len(keys) + 5]
             split = dict(use=got[-2], theta=got[-1])

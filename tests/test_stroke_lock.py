@@ -167,7 +167,7 @@ def test_without_friction_the_lock_is_refused():
         scene_from_dict(data, "frictionless.toml")
 
 
-def test_the_lock_adds_to_the_graph_only_where_a_leg_can_lock():
+def test_the_lock_and_the_split_add_gated_calls_of_their_own():
     scene = load_scene(ROOT / "studies" / "lander_slope.toml")
     branch = build_model(scene.with_(events="branch", slip="midpoint"))
     lock = build_model(scene.with_(events="lock", slip="midpoint"))
