@@ -7,8 +7,9 @@ in :mod:`symcushion.stability`; the driver that runs the step, with the
 paper's adaptive step criterion, and the trajectories it returns live in
 :mod:`symcushion.driver`.
 It receives the physics from elsewhere: the leg force P(r) and stiffness D_p
-from ``symcushion.strut``, the contact step from ``symcushion.contact`` and
-the obstacle geometry from ``symcushion.obstacles``; it re-derives none of it.
+from ``symcushion.strut``, the feet's contact steps over a step from
+``symcushion.foot_step`` (which calls ``symcushion.contact``) and the
+obstacle geometry from ``symcushion.obstacles``; it re-derives none of it.
 
 Scheme (one step of length h, §3 of the paper with a velocity-Verlet body):
 
@@ -74,11 +75,8 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from .contact import contact_step_call
-from .contact_guards import at_least, at_most
-from .branch_switch import (branch_flip, branch_switch_kick, locates_switch, stored_branch,
-                            switch_in_step)
-from .contact_midpoint import midpoint_slip_call
+from .branch_switch import branch_flip, branch_switch_kick, locates_switch
+from .foot_step import FeetStep, LegInput, StepPoses
 from .layout import (BODY_OUT, BODY_STATE, LEG_OUT, LEG_STATE, MODES, ParamLayout, default_p,
                      output_layout, param_layout, quat_exp, quat_mul, quat_to_rot,
                      quat_to_rot_np, state_layout)
@@ -276,145 +274,12 @@ def build_model(scene: Scene) -> StepModel:
     vel_h, omega_h, pos1, quat1 = drift
     R1 = quat_to_rot(quat1)
 
-    # 3. feet
-    def contact_from(j, rho_s, r_s, pos_e, R_e, rate_of, R_s):
-        """The contact step of foot j from ``rho_s`` (body frame) at the world point
-        ``r_s``, the body going from attitude ``R_s`` to the pose (``pos_e``,
-        ``R_e``); ``rate_of(l)`` is the rate that selects the branches. Returns the
-        step's outputs, l, n_b, the world normal and the rate."""
-        fns, p_leg = fns_of[j], p_of[j]
-        _, normal_w, _ = closest_obstacle(scene.obstacles, r_s)
-        l = R_e.T @ (r_s - pos_e) - rho_s                      # §3: l_j, exact kinematics
-        n_b = R_e.T @ normal_w
-        u0 = rho_s - rest[j]
-        v_rel = rate_of(l)
-        P0 = fns["strut_force"](rho_s, v_rel, p_leg)
-        Dp = fns["strut_stiffness"](rho_s, v_rel, p_leg)
-        out = contact_step_call(scene.method, P0, Dp, n_b, l, mu, u0, friction=friction)
-        if scene.tangent_plane == "end":
-            # second pass: the tangent plane at the predicted end point, shifted along
-            # its normal so that a sticking foot keeps its world point r_s
-            _, _, r_pred = closest_obstacle(scene.obstacles, pos_e + R_e @ (rho_s + out["delta"]))
-            _, normal_w, _ = closest_obstacle(scene.obstacles, r_pred)
-            n_b = R_e.T @ normal_w
-            l = l + n_b * ca.dot(n_b, R_e.T @ (r_pred - r_s))
-            out = contact_step_call(scene.method, P0, Dp, n_b, l, mu, u0,
-                                    friction=friction)
-        if scene.slip == "midpoint" and friction:
-            # second-order slip direction (symcushion.contact_midpoint); μ = 0 has none.
-            # The start force turns with the body into the frame of the end.
-            out = midpoint_slip_call(P0, Dp, n_b, l, mu, out, R_e.T @ R_s - ca.DM.eye(3))
-        return out, l, n_b, normal_w, v_rel
-
-    def on_surface(rho, delta, pos_e, R_e):
-        """The foot ρ + δ at the pose (pos_e, R_e) put on the obstacle: world, body."""
-        _, _, w = closest_obstacle(scene.obstacles, pos_e + R_e @ (rho + delta))
-        return w, R_e.T @ (w - pos_e)
-
-    quat_mid = quat_mul(quat, quat_exp(h / 2 * omega_h))
-    kin_start = dict(R=R, v=vel, omega=omega)                    # exact at the start
-    kin_mid = dict(R=quat_to_rot(quat_mid / ca.norm_2(quat_mid)), v=vel_h, omega=omega_h)
-
-    def split_at_switch(j, rho_s, r_s, stored):
-        """The contact step of foot j split at its axial branch switch (``events =
-        "branch"``, symcushion.branch_switch): on the stored curve up to the switch,
-        the foot's jump onto the other curve there, then on to the end. Returns the
-        split step's (out, l, n_b, world normal, rate, start foot ρ of its last
-        part) and the switch's ``use`` and θ."""
-        fns, p_leg = fns_of[j], p_of[j]
-
-        def on_branch(loading, rho):
-            a = axial_branches(fns, p_leg, rho)
-            rate = ca.if_else(loading, 1.0, -1.0) * ca.dot(a["loading"], a["e_S"])
-            return lambda l_: l_ / h + (rate - ca.dot(a["e_S"], l_ / h)) * a["e_S"]
-
-        # where the switching function crosses zero, following the sliding foot: its
-        # middle position on the stored curve over the whole step
-        whole, _, _, _, _ = contact_from(j, rho_s, r_s, pos1, R1, on_branch(stored, rho_s), R)
-        sw = switch_in_step(fns, rho_s, rho_s + whole["delta"] / 2, stored, kin_start, kin_mid)
-        theta = sw["theta"]
-        pos_t = pos + theta * h * vel_h
-        quat_t = quat_mul(quat, quat_exp(theta * h * omega_h))
-        R_t = quat_to_rot(quat_t / ca.norm_2(quat_t))
-        new = ca.logic_not(stored)
-        # up to the switch on the stored curve
-        before, _, _, _, _ = contact_from(j, rho_s, r_s, pos_t, R_t, on_branch(stored, rho_s), R)
-        foot_t, rho_t = on_surface(rho_s, before["delta"], pos_t, R_t)
-        # at the switch the massless foot finds its equilibrium on the new curve at
-        # once (l = 0: the body does not move during the jump)
-        jump, _, _, _, _ = contact_from(j, rho_t, foot_t, pos_t, R_t, on_branch(new, rho_t), R_t)
-        foot_t, rho_t = on_surface(rho_t, jump["delta"], pos_t, R_t)
-        after, l, n_b, normal_w, v_rel = contact_from(j, rho_t, foot_t, pos1, R1,
-                                                      on_branch(new, rho_t), R_t)
-        use = ca.logic_and(ca.logic_and(sw["switches"], feet[j]["contact"] > 0.5),
-                           ca.logic_and(before["contact"] > 0.5, jump["contact"] > 0.5))
-        return (after, l, n_b, normal_w, v_rel, rho_t), dict(use=use, theta=theta)
-
-    def foot_contact(j, release=None):
-        """The contact step of foot j. ``release`` = (flag, e_S, rate): where the flag
-        is set, the axial component of the chord's rate l/h (which picks the
-        branch) is replaced by ``rate``."""
-        foot = feet[j]
-        in_contact = foot["contact"] > 0.5
-        # free foot: where does its unloaded position cross the surface?
-        free0 = pos + R @ rest[j]
-        free1 = pos1 + R1 @ rest[j]
-        d0, _, _ = closest_obstacle(scene.obstacles, free0)
-        d1, _, _ = closest_obstacle(scene.obstacles, free1)
-        crossing = d0 - d1
-        tau = ca.if_else(crossing > 0, d0 / ca.if_else(crossing > 0, crossing, 1.0), 0.0)
-        tau = at_most(at_least(tau, 0.0), 1.0)
-        _, _, touch = closest_obstacle(scene.obstacles, free0 + tau * (free1 - free0))
-        touches = d1 < 0
-        active = ca.logic_or(in_contact, touches)
-
-        r_s = ca.if_else(in_contact, foot["foot"], touch)        # world point of the plane
-        rho_s = rho0[j]                                          # foot, body frame
-
-        def chord_rate(l):
-            v_rel = l / h                                      # selects loading branches
-            if release is not None:
-                flag, e_S, rate = release
-                v_rel = ca.if_else(flag, v_rel + (rate - ca.dot(e_S, v_rel)) * e_S, v_rel)
-            return v_rel
-
-        out, l, n_b, normal_w, v_rel = contact_from(j, rho_s, r_s, pos1, R1, chord_rate, R)
-        rho_last, split = rho_s, None
-        if scene.events == "branch" and locates_switch(legs[j]):
-            # the split step, in a call that runs only where the foot is in contact and
-            # either the chord or the switching function at the unsplit step's middle
-            # foot point (the split's own where the chord keeps the stored curve) says
-            # the curve changes: elsewhere (B2) finds no switch and the call's value is
-            # the unsplit step's
-            fns, p_leg = fns_of[j], p_of[j]
-            stored = stored_branch(fns, p_leg, rho_s, foot["force_body"])
-            flip, _ = branch_flip(fns, p_leg, rho_s, foot["force_body"], l, h, stored)
-            near = switch_in_step(fns, rho_s, rho_s + out["delta"] / 2, stored, kin_start,
-                                  kin_mid)["switches"]
-            candidate = ca.logic_and(in_contact, ca.logic_or(flip, near))
-            keys = sorted(out)
-            plain = [out[k] for k in keys] + [l, n_b, normal_w, v_rel, rho_s]
-            plain_in = [ca.SX.sym(f"plain{k}", x.sparsity()) for k, x in enumerate(plain)]
-            parts, sw = split_at_switch(j, rho_s, r_s, stored)
-            parts = [parts[0][k] for k in keys] + list(parts[1:])
-            on = [ca.if_else(sw["use"], a, b) for a, b in zip(parts, plain_in)]
-            got, gated[f"touchdown_split_{j}"] = skip_unless(
-                f"touchdown_split_{j}", candidate, [X, p, h] + plain_in, [X, p, h] + plain,
-                on + [sw["use"], ca.if_else(sw["use"], sw["theta"], 0.5)],
-                plain_in + [ca.SX(0), ca.SX(0.5)])
-            out = dict(zip(keys, got[:len(keys)]))
-            l, n_b, normal_w, v_rel, rho_last = got[len(keys):len(keys) + 5]
-            split = dict(use=got[-2], theta=got[-1])
-        stays = ca.logic_and(active, out["contact"] > 0.5)
-        rho1 = ca.if_else(stays, rho_last + out["delta"], rest[j])
-        foot_w = pos1 + R1 @ rho1
-        _, _, foot_proj = closest_obstacle(scene.obstacles, foot_w)
-        foot_w = ca.if_else(stays, foot_proj, foot_w)
-        rho1 = ca.if_else(stays, R1.T @ (foot_w - pos1), rho1)
-        P1 = ca.if_else(stays, out["P"], ca.DM.zeros(3))
-        return dict(in_contact=in_contact, active=active, stays=stays, rho_s=rho_s, r_s=r_s,
-                    l=l, n_b=n_b, v_rel=v_rel, normal_w=normal_w, out=out, rho1=rho1,
-                    foot_w=foot_w, P1=P1, locked=ca.SX(0), split=split)
+    # 3. feet (symcushion.foot_step)
+    feet_step = FeetStep(scene, StepPoses(h=h, pos=pos, quat=quat, R=R, vel=vel, omega=omega,
+                                          vel_h=vel_h, omega_h=omega_h, pos1=pos1, R1=R1),
+                         mu, [X, p, h])
+    leg_in = [LegInput(strut=legs[j], fns=fns_of[j], p_leg=p_of[j], rest=rest[j], foot=feet[j],
+                       rho0=rho0[j]) for j in range(n_legs)]
 
     res, release_loading = [], {}
     stored_loading = {j: feet[j]["contact"] < 2.5 for j in lockable}
@@ -429,9 +294,10 @@ def build_model(scene: Scene) -> StepModel:
             # (a foot that touches down loads by the curves' own test: at zero
             # deflection they take the loading branch, characteristics.ZERO_DEFLECTION)
             rate = ca.if_else(to_load, 1.0, -1.0) * ca.dot(a["loading"], a["e_S"])
-            res.append(foot_contact(j, (locked0[j], a["e_S"], rate)))
+            res.append(feet_step.foot(j, leg_in[j], (locked0[j], a["e_S"], rate)))
         else:
-            res.append(foot_contact(j))
+            res.append(feet_step.foot(j, leg_in[j]))
+    gated.update(feet_step.gated)
 
     def second_kick_of(res, vel_h, omega_h, R1, hold):
         """second_kick(mask, S): v, ω at the end with the legs of ``mask`` held by the

@@ -1,0 +1,243 @@
+"""The feet's contact steps inside one touchdown step.
+
+This module owns what happens to each foot over one body step whose poses
+are given (§1, §3 of the paper): where a free foot's unloaded position
+crosses the obstacle, the contact step of ``symcushion.contact`` on the
+tangent plane (and its second pass at the predicted end point), the
+midpoint slip rule of ``symcushion.contact_midpoint`` with the start force
+carried into the frame of the end of the step, and, with ``events =
+"branch"``, the contact step split at a located branch switch of the axial
+absorber (``symcushion.branch_switch``) in a call that runs only where a
+switch is possible. It returns each foot's end pose, end force and what the
+touchdown step needs to kick the body.
+
+It must not move the body (the kicks, the drift and the stroke lock's
+solves are ``symcushion.touchdown``'s), change the contact step or the force
+law (2.1), or validate user input.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+
+from .branch_switch import branch_flip, locates_switch, stored_branch, switch_in_step
+from .contact import contact_step_call
+from .contact_guards import at_least, at_most
+from .contact_midpoint import midpoint_slip_call
+from .layout import quat_exp, quat_mul, quat_to_rot
+from .obstacles import closest_obstacle
+from .stroke_lock import axial_branches, skip_unless
+
+__all__ = ["StepPoses", "LegInput", "FeetStep"]
+
+
+@dataclass(frozen=True)
+class StepPoses:
+    """The body over one step of length ``h`` (CasADi expressions): at the start
+    ``pos``, ``quat``, ``R`` (world), ``vel`` (m/s, world), ``omega`` (rad/s,
+    body); the drift's velocities ``vel_h``, ``omega_h`` (those of the middle of
+    the step); at the end ``pos1``, ``R1``."""
+
+    h: ca.SX
+    pos: ca.SX
+    quat: ca.SX
+    R: ca.SX
+    vel: ca.SX
+    omega: ca.SX
+    vel_h: ca.SX
+    omega_h: ca.SX
+    pos1: ca.SX
+    R1: ca.SX
+
+
+@dataclass(frozen=True)
+class LegInput:
+    """One leg in the step: its ``strut`` (:class:`~symcushion.strut.HingedStrut`),
+    its Functions ``fns`` and curve parameters ``p_leg``, its unloaded foot
+    ``rest`` (body frame), its state entries ``foot`` (``foot``, ``contact``,
+    ``force_body``) and its foot at the start ``rho0`` (body frame)."""
+
+    strut: object
+    fns: dict
+    p_leg: ca.SX
+    rest: ca.DM
+    foot: dict
+    rho0: ca.SX
+
+
+class FeetStep:
+    """The contact steps of the feet of one body step.
+
+    Parameters
+    ----------
+    scene : Scene
+        Its obstacles, contact ``method``, ``tangent_plane``, ``slip`` and
+        ``events``.
+    poses : StepPoses
+    mu : casadi.SX or float
+        The Coulomb coefficient (0.0 for a frictionless scene).
+    step_inputs : list of casadi.SX
+        The symbols of the step Function's inputs (x, p, dt), on which the
+        gated calls are built.
+
+    Attributes
+    ----------
+    gated : dict
+        The gated calls built so far, by name (``touchdown_split_{j}``), as the
+        SX Functions they run.
+    """
+
+    def __init__(self, scene, poses: StepPoses, mu, step_inputs):
+        self.scene, self.poses, self.mu = scene, poses, mu
+        self.friction = scene.mu > 0
+        self.step_inputs = list(step_inputs)
+        self.gated = {}
+        P = poses
+        quat_mid = quat_mul(P.quat, quat_exp(P.h / 2 * P.omega_h))
+        self.kin_start = dict(R=P.R, v=P.vel, omega=P.omega)            # exact at the start
+        self.kin_mid = dict(R=quat_to_rot(quat_mid / ca.norm_2(quat_mid)), v=P.vel_h,
+                            omega=P.omega_h)
+
+    def contact_from(self, leg: LegInput, rho_s, r_s, pos_e, R_e, rate_of, R_s):
+        """The contact step of ``leg``'s foot from ``rho_s`` (body frame) at the world
+        point ``r_s``, the body going from attitude ``R_s`` to the pose (``pos_e``,
+        ``R_e``); ``rate_of(l)`` is the rate that selects the branches. Returns the
+        step's outputs, l, n_b, the world normal and the rate."""
+        scene, mu, friction = self.scene, self.mu, self.friction
+        fns, p_leg = leg.fns, leg.p_leg
+        _, normal_w, _ = closest_obstacle(scene.obstacles, r_s)
+        l = R_e.T @ (r_s - pos_e) - rho_s                      # §3: l_j, exact kinematics
+        n_b = R_e.T @ normal_w
+        u0 = rho_s - leg.rest
+        v_rel = rate_of(l)
+        P0 = fns["strut_force"](rho_s, v_rel, p_leg)
+        Dp = fns["strut_stiffness"](rho_s, v_rel, p_leg)
+        out = contact_step_call(scene.method, P0, Dp, n_b, l, mu, u0, friction=friction)
+        if scene.tangent_plane == "end":
+            # second pass: the tangent plane at the predicted end point, shifted along
+            # its normal so that a sticking foot keeps its world point r_s
+            _, _, r_pred = closest_obstacle(scene.obstacles, pos_e + R_e @ (rho_s + out["delta"]))
+            _, normal_w, _ = closest_obstacle(scene.obstacles, r_pred)
+            n_b = R_e.T @ normal_w
+            l = l + n_b * ca.dot(n_b, R_e.T @ (r_pred - r_s))
+            out = contact_step_call(scene.method, P0, Dp, n_b, l, mu, u0,
+                                    friction=friction)
+        if scene.slip == "midpoint" and friction:
+            # second-order slip direction (symcushion.contact_midpoint); μ = 0 has none.
+            # The start force turns with the body into the frame of the end.
+            out = midpoint_slip_call(P0, Dp, n_b, l, mu, out, R_e.T @ R_s - ca.DM.eye(3))
+        return out, l, n_b, normal_w, v_rel
+
+    def on_surface(self, rho, delta, pos_e, R_e):
+        """The foot ρ + δ at the pose (pos_e, R_e) put on the obstacle: world, body."""
+        _, _, w = closest_obstacle(self.scene.obstacles, pos_e + R_e @ (rho + delta))
+        return w, R_e.T @ (w - pos_e)
+
+    def split_at_switch(self, leg: LegInput, rho_s, r_s, stored):
+        """The contact step of ``leg``'s foot split at its axial branch switch: on the
+        stored curve up to the switch, the foot's jump onto the other curve there,
+        then on to the end. Returns the split step's (out, l, n_b, world normal,
+        rate, start foot ρ of its last part) and the switch's ``use`` and θ."""
+        P = self.poses
+        h, fns, p_leg = P.h, leg.fns, leg.p_leg
+
+        def on_branch(loading, rho):
+            a = axial_branches(fns, p_leg, rho)
+            rate = ca.if_else(loading, 1.0, -1.0) * ca.dot(a["loading"], a["e_S"])
+            return lambda l_: l_ / h + (rate - ca.dot(a["e_S"], l_ / h)) * a["e_S"]
+
+        # where the switching function crosses zero, following the sliding foot: its
+        # middle position on the stored curve over the whole step
+        whole, _, _, _, _ = self.contact_from(leg, rho_s, r_s, P.pos1, P.R1,
+                                              on_branch(stored, rho_s), P.R)
+        sw = switch_in_step(fns, rho_s, rho_s + whole["delta"] / 2, stored, self.kin_start,
+                            self.kin_mid)
+        theta = sw["theta"]
+        pos_t = P.pos + theta * h * P.vel_h
+        quat_t = quat_mul(P.quat, quat_exp(theta * h * P.omega_h))
+        R_t = quat_to_rot(quat_t / ca.norm_2(quat_t))
+        new = ca.logic_not(stored)
+        # up to the switch on the stored curve
+        before, _, _, _, _ = self.contact_from(leg, rho_s, r_s, pos_t, R_t,
+                                               on_branch(stored, rho_s), P.R)
+        foot_t, rho_t = self.on_surface(rho_s, before["delta"], pos_t, R_t)
+        # at the switch the massless foot finds its equilibrium on the new curve at
+        # once (l = 0: the body does not move during the jump)
+        jump, _, _, _, _ = self.contact_from(leg, rho_t, foot_t, pos_t, R_t,
+                                             on_branch(new, rho_t), R_t)
+        foot_t, rho_t = self.on_surface(rho_t, jump["delta"], pos_t, R_t)
+        after, l, n_b, normal_w, v_rel = self.contact_from(leg, rho_t, foot_t, P.pos1, P.R1,
+                                                           on_branch(new, rho_t), R_t)
+        use = ca.logic_and(ca.logic_and(sw["switches"], leg.foot["contact"] > 0.5),
+                           ca.logic_and(before["contact"] > 0.5, jump["contact"] > 0.5))
+        return (after, l, n_b, normal_w, v_rel, rho_t), dict(use=use, theta=theta)
+
+    def foot(self, j, leg: LegInput, release=None) -> dict:
+        """The contact step of foot ``j``. ``release`` = (flag, e_S, rate): where the
+        flag is set, the axial component of the chord's rate l/h (which picks the
+        branch) is replaced by ``rate``."""
+        scene, P = self.scene, self.poses
+        h, foot = P.h, leg.foot
+        in_contact = foot["contact"] > 0.5
+        # free foot: where does its unloaded position cross the surface?
+        free0 = P.pos + P.R @ leg.rest
+        free1 = P.pos1 + P.R1 @ leg.rest
+        d0, _, _ = closest_obstacle(scene.obstacles, free0)
+        d1, _, _ = closest_obstacle(scene.obstacles, free1)
+        crossing = d0 - d1
+        tau = ca.if_else(crossing > 0, d0 / ca.if_else(crossing > 0, crossing, 1.0), 0.0)
+        tau = at_most(at_least(tau, 0.0), 1.0)
+        _, _, touch = closest_obstacle(scene.obstacles, free0 + tau * (free1 - free0))
+        touches = d1 < 0
+        active = ca.logic_or(in_contact, touches)
+
+        r_s = ca.if_else(in_contact, foot["foot"], touch)        # world point of the plane
+        rho_s = leg.rho0                                         # foot, body frame
+
+        def chord_rate(l):
+            v_rel = l / h                                      # selects loading branches
+            if release is not None:
+                flag, e_S, rate = release
+                v_rel = ca.if_else(flag, v_rel + (rate - ca.dot(e_S, v_rel)) * e_S, v_rel)
+            return v_rel
+
+        out, l, n_b, normal_w, v_rel = self.contact_from(leg, rho_s, r_s, P.pos1, P.R1,
+                                                         chord_rate, P.R)
+        rho_last, split = rho_s, None
+        if scene.events == "branch" and locates_switch(leg.strut):
+            # the split step, in a call that runs only where the foot is in contact and
+            # either the chord or the switching function at the unsplit step's middle
+            # foot point (the split's own where the chord keeps the stored curve) says
+            # the curve changes: elsewhere (B2) finds no switch and the call's value is
+            # the unsplit step's
+            fns, p_leg = leg.fns, leg.p_leg
+            stored = stored_branch(fns, p_leg, rho_s, foot["force_body"])
+            flip, _ = branch_flip(fns, p_leg, rho_s, foot["force_body"], l, h, stored)
+            near = switch_in_step(fns, rho_s, rho_s + out["delta"] / 2, stored, self.kin_start,
+                                  self.kin_mid)["switches"]
+            candidate = ca.logic_and(in_contact, ca.logic_or(flip, near))
+            keys = sorted(out)
+            plain = [out[k] for k in keys] + [l, n_b, normal_w, v_rel, rho_s]
+            plain_in = [ca.SX.sym(f"plain{k}", x.sparsity()) for k, x in enumerate(plain)]
+            parts, sw = self.split_at_switch(leg, rho_s, r_s, stored)
+            parts = [parts[0][k] for k in keys] + list(parts[1:])
+            on = [ca.if_else(sw["use"], a, b) for a, b in zip(parts, plain_in)]
+            got, self.gated[f"touchdown_split_{j}"] = skip_unless(
+                f"touchdown_split_{j}", candidate, self.step_inputs + plain_in,
+                self.step_inputs + plain,
+                on + [sw["use"], ca.if_else(sw["use"], sw["theta"], 0.5)],
+                plain_in + [ca.SX(0), ca.SX(0.5)])
+            out = dict(zip(keys, got[:len(keys)]))
+            l, n_b, normal_w, v_rel, rho_last = got[len(keys):len(keys) + 5]
+            split = dict(use=got[-2], theta=got[-1])
+        stays = ca.logic_and(active, out["contact"] > 0.5)
+        rho1 = ca.if_else(stays, rho_last + out["delta"], leg.rest)
+        foot_w = P.pos1 + P.R1 @ rho1
+        _, _, foot_proj = closest_obstacle(scene.obstacles, foot_w)
+        foot_w = ca.if_else(stays, foot_proj, foot_w)
+        rho1 = ca.if_else(stays, P.R1.T @ (foot_w - P.pos1), rho1)
+        P1 = ca.if_else(stays, out["P"], ca.DM.zeros(3))
+        return dict(in_contact=in_contact, active=active, stays=stays, rho_s=rho_s, r_s=r_s,
+                    l=l, n_b=n_b, v_rel=v_rel, normal_w=normal_w, out=out, rho1=rho1,
+                    foot_w=foot_w, P1=P1, locked=ca.SX(0), split=split)
