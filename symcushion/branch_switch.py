@@ -68,7 +68,7 @@ import casadi as ca
 
 from .characteristics import ZERO_DEFLECTION
 from .contact_guards import at_least, at_most
-from .stroke_lock import axial_branches
+from .stroke_lock import axial_branches, stroke_rate
 
 __all__ = ["locates_switch", "stored_branch", "switch_in_step", "branch_flip",
            "branch_switch_kick"]
@@ -111,7 +111,7 @@ def _rate_at(strut_fns, rho, kin):
     with the body's ``R``, ``v`` (world) and ``omega`` (body) of ``kin``: the rate
     whose sign selects the branch in (2.1)."""
     e_S = strut_fns["strut_geometry"].call(dict(r=rho))["e_S"]
-    return ca.dot(e_S, -ca.cross(kin["omega"], rho) - kin["R"].T @ kin["v"])   # (2.1)
+    return stroke_rate(rho, e_S, kin["v"], kin["omega"], kin["R"])        # (2.1)
 
 
 def switch_in_step(strut_fns, rho0, rho_mid, stored_loading, start, mid):
@@ -202,18 +202,18 @@ def branch_switch_kick(strut_fns, p_leg, foot, step):
     """
     rho0, F0 = foot["rho0"], foot["F0"]
     h, l = step["h"], step["l"]
-    flip, ax = branch_flip(strut_fns, p_leg, rho0, F0, l, h, foot.get("stored_loading"))
-    e_S = ax["e_S"]
-    switched = ca.logic_and(foot["active"], flip)
-    # the zero of s(t) through s₀ (exact) and s_½ (chord at the middle foot point)
-    s0 = ca.dot(e_S, -ca.cross(step["omega"], rho0) - step["R"].T @ step["v"])
-    e_mid = strut_fns["strut_geometry"].call(dict(r=rho0 + l / 2))["e_S"]
-    s_half = ca.dot(e_mid, l / h)
-    theta = at_most(at_least(s0 / _floored(2 * (s0 - s_half)), -0.5), 0.5)
     if foot.get("split") is not None:
         # the contact step was split at the switch of (B2): its θ, in [0, 1]
         switched = ca.logic_and(foot["active"], foot["split"]["use"])
         theta = foot["split"]["theta"]
+    else:
+        flip, ax = branch_flip(strut_fns, p_leg, rho0, F0, l, h, foot.get("stored_loading"))
+        switched = ca.logic_and(foot["active"], flip)
+        # the zero of s(t) through s₀ (exact) and s_½ (chord at the middle foot point)
+        s0 = _rate_at(strut_fns, rho0, dict(R=step["R"], v=step["v"], omega=step["omega"]))
+        e_mid = strut_fns["strut_geometry"].call(dict(r=rho0 + l / 2))["e_S"]
+        s_half = ca.dot(e_mid, l / h)
+        theta = at_most(at_least(s0 / _floored(2 * (s0 - s_half)), -0.5), 0.5)
     weight = ca.if_else(switched, theta - 0.5, 0.0)                         # (B1)
     dforce = weight * (step["R"] @ F0 - step["R1"] @ foot["F1"])
     dtorque = weight * (ca.cross(rho0, F0) - ca.cross(foot["rho1"], foot["F1"]))
