@@ -173,10 +173,12 @@ class FeetStep:
                            ca.logic_and(before["contact"] > 0.5, jump["contact"] > 0.5))
         return (after, l, n_b, normal_w, v_rel, rho_t), dict(use=use, theta=theta)
 
-    def foot(self, j, leg: LegInput, release=None) -> dict:
+    def foot(self, j, leg: LegInput, release=None, stored=None) -> dict:
         """The contact step of foot ``j``. ``release`` = (flag, e_S, rate): where the
         flag is set, the axial component of the chord's rate l/h (which picks the
-        branch) is replaced by ``rate``."""
+        branch) is replaced by ``rate``, and the step is not split. ``stored``: the
+        stored force's curve (1 loading) where the state keeps it, else read from
+        the force."""
         scene, P = self.scene, self.poses
         h, foot = P.h, leg.foot
         in_contact = foot["contact"] > 0.5
@@ -204,19 +206,22 @@ class FeetStep:
 
         out, l, n_b, normal_w, v_rel = self.contact_from(leg, rho_s, r_s, P.pos1, P.R1,
                                                          chord_rate, P.R)
-        rho_last, split = rho_s, None
-        if scene.events == "branch" and locates_switch(leg.strut):
+        rho_last, split, l_whole = rho_s, None, l
+        if scene.events in ("branch", "lock") and locates_switch(leg.strut):
             # the split step, in a call that runs only where the foot is in contact and
             # either the chord or the switching function at the unsplit step's middle
             # foot point (the split's own where the chord keeps the stored curve) says
             # the curve changes: elsewhere (B2) finds no switch and the call's value is
             # the unsplit step's
             fns, p_leg = leg.fns, leg.p_leg
-            stored = stored_branch(fns, p_leg, rho_s, foot["force_body"])
+            if stored is None:
+                stored = stored_branch(fns, p_leg, rho_s, foot["force_body"])
             flip, _ = branch_flip(fns, p_leg, rho_s, foot["force_body"], l, h, stored)
             near = switch_in_step(fns, rho_s, rho_s + out["delta"] / 2, stored, self.kin_start,
                                   self.kin_mid)["switches"]
             candidate = ca.logic_and(in_contact, ca.logic_or(flip, near))
+            if release is not None:
+                candidate = ca.logic_and(candidate, ca.logic_not(release[0]))
             keys = sorted(out)
             plain = [out[k] for k in keys] + [l, n_b, normal_w, v_rel, rho_s]
             plain_in = [ca.SX.sym(f"plain{k}", x.sparsity()) for k, x in enumerate(plain)]
@@ -240,4 +245,4 @@ class FeetStep:
         P1 = ca.if_else(stays, out["P"], ca.DM.zeros(3))
         return dict(in_contact=in_contact, active=active, stays=stays, rho_s=rho_s, r_s=r_s,
                     l=l, n_b=n_b, v_rel=v_rel, normal_w=normal_w, out=out, rho1=rho1,
-                    foot_w=foot_w, P1=P1, locked=ca.SX(0), split=split)
+                    foot_w=foot_w, P1=P1, locked=ca.SX(0), split=split, l_whole=l_whole)

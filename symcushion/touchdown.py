@@ -294,7 +294,8 @@ def build_model(scene: Scene) -> StepModel:
             # (a foot that touches down loads by the curves' own test: at zero
             # deflection they take the loading branch, characteristics.ZERO_DEFLECTION)
             rate = ca.if_else(to_load, 1.0, -1.0) * ca.dot(a["loading"], a["e_S"])
-            res.append(feet_step.foot(j, leg_in[j], (locked0[j], a["e_S"], rate)))
+            res.append(feet_step.foot(j, leg_in[j], (locked0[j], a["e_S"], rate),
+                                      stored=stored_loading[j]))
         else:
             res.append(feet_step.foot(j, leg_in[j]))
     gated.update(feet_step.gated)
@@ -432,10 +433,16 @@ def build_model(scene: Scene) -> StepModel:
         cand, end_loading = [], []
         for j in lockable:
             r = res[j]
-            flip, ax = branch_flip(fns_of[j], p_of[j], rho0[j], feet[j]["force_body"], r["l"], h,
-                                   stored_loading[j])
+            flip, ax = branch_flip(fns_of[j], p_of[j], rho0[j], feet[j]["force_body"],
+                                   r["l_whole"], h, stored_loading[j])
+            new_loading = ax["new_loading"]
+            if r["split"] is not None:
+                # a switch located inside the step is a reversal as well
+                flip = ca.logic_or(flip, r["split"]["use"])
+                new_loading = ca.if_else(r["split"]["use"], ca.logic_not(stored_loading[j]),
+                                         new_loading)
             end_loading.append(ca.if_else(locked0[j], release_loading[j],
-                                          ca.if_else(r["in_contact"], ax["new_loading"], 1.0)))
+                                          ca.if_else(r["in_contact"], new_loading, 1.0)))
             cand.append(ca.logic_and(ca.logic_and(ca.logic_not(locked0[j]), flip),
                                      r["in_contact"]))
         # the lock's work in a call that runs it only when a leg is locked or turns; in the
