@@ -467,3 +467,18 @@ def test_plot_window_writes_one_panel_per_window(tmp_path):
 def test_window_runs_rejects_an_unknown_scheme_before_running():
     with pytest.raises(ValueError, match="not cases of the slope lander"):
         event_order.window_runs(schemes=("all events", "no such scheme"))
+
+
+#: End of the phase over which the lock with the split keeps second order (s): past
+#: the drops of legs 2 and 1, the downhill touchdowns, leg 1's hold from 96 ms and its
+#: first exit from the friction cone at about 100.6 ms.
+LOCK_PHASE = 0.1
+
+
+def test_the_lock_splits_its_direct_switches_and_keeps_second_order():
+    """The stroke lock (``events = "lock"``) with its direct switches split like the
+    located switch's: second order through the drops, the downhill touchdowns and the
+    first hold (1.91 measured; the lock without the split 1.34 over the same phase)."""
+    order, errors, ref_error = _slope_lander_order(LOCK_PHASE, slip="midpoint", events="lock")
+    assert ref_error < REFERENCE_SHARE * errors[-1], (ref_error, errors)
+    assert order >= MIN_SECOND_ORDER, (order, errors)
