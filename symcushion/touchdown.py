@@ -45,7 +45,9 @@ the stroke at the start (SHAKE), the second μ e_S with the stroke rate at
 the end zero (RATTLE); the locked foot stays at its world point. A leg in
 contact whose chord turns is tested for the lock by the force that holds
 its stroke after the velocities are projected onto the held strokes; the
-ones that do not lock keep the located switch (B1). The state's
+ones that do not lock keep the located switch, their contact step split at
+it as with ``"branch"`` (a switch the split locates is tried for the lock as
+well). The state's
 ``contact`` entry marks a locked foot (2) and a foot on the unloading
 curve (3). The lock's work sits in two calls (``stroke_lock.skip_unless``)
 that run only in the steps where a leg is locked (SHAKE) or is locked or
