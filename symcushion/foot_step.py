@@ -6,9 +6,10 @@ crosses the obstacle, the contact step of ``symcushion.contact`` on the
 tangent plane (and its second pass at the predicted end point), the
 midpoint slip rule of ``symcushion.contact_midpoint`` with the start force
 carried into the frame of the end of the step, and, with ``events =
-"branch"`` or ``"lock"`` (a leg that is not locked), the contact step split at
-a located branch switch of the axial absorber (``symcushion.branch_switch``) in a call that runs only where a
-switch is possible. It returns each foot's end pose, end force and what the
+"branch"`` or ``"lock"`` (a leg that is not locked), the contact step split
+at a located branch switch of the axial absorber (``symcushion.branch_switch``)
+in a call that runs only where a switch is possible. It returns each foot's
+end pose, end force and what the
 touchdown step needs to kick the body.
 
 It must not move the body (the kicks, the drift and the stroke lock's
