@@ -470,8 +470,8 @@ def test_window_runs_rejects_an_unknown_scheme_before_running():
 
 
 #: End of the phase over which the lock with the split keeps second order (s): past
-#: the drops of legs 2 and 1, the downhill touchdowns, leg 1's hold from 96 ms and its
-#: first exit from the friction cone at about 100.6 ms.
+#: the drops of legs 2 and 1, the downhill touchdowns and the start of leg 1's hold
+#: (96 ms), just before that held leg first leaves the friction cone (about 100.6 ms).
 LOCK_PHASE = 0.1
 
 
