@@ -482,3 +482,78 @@ def test_the_lock_splits_its_direct_switches_and_keeps_second_order():
     order, errors, ref_error = _slope_lander_order(LOCK_PHASE, slip="midpoint", events="lock")
     assert ref_error < REFERENCE_SHARE * errors[-1], (ref_error, errors)
     assert order >= MIN_SECOND_ORDER, (order, errors)
+
+
+def test_nudged_moves_one_entry_of_the_initial_state_and_keeps_the_name():
+    base = next(sc for name, label, _, sc in event_order.scenes()
+                if name == "lander_slope" and label == "all events")
+    moved = event_order.nudged(base, "velocity", 1, 1e-7)
+    assert moved.name == base.name
+    np.testing.assert_allclose(moved.body.velocity - base.body.velocity, [0.0, 1e-7, 0.0],
+                               atol=1e-15)
+    np.testing.assert_array_equal(moved.body.position, base.body.position)
+    with pytest.raises(ValueError, match="`field`"):
+        event_order.nudged(base, "omega", 0, 1e-6)
+    with pytest.raises(ValueError, match="`index`"):
+        event_order.nudged(base, "velocity", -1, 1e-6)
+    with pytest.raises(ValueError, match="`size`"):
+        event_order.nudged(base, "velocity", 0, float("inf"))
+
+
+def test_smooth_until_ends_where_the_gains_of_the_nudges_part():
+    nudges = np.array([1e-9, 1e-7, 1e-5])
+    times = (0.1, 0.2, 0.3)
+    linear = np.outer(nudges, [0.1, 0.2, 0.5])
+    assert event_order.smooth_until(nudges, linear, times) == 0.3
+    jump = linear.copy()
+    jump[0, 1] += 3e-4                    # the smallest nudge flips a decision by 0.2 s
+    assert event_order.smooth_until(nudges, jump, times) == 0.1
+    still = linear.copy()
+    still[:, 0] = 0.0                     # not moved at all: not linear either
+    assert event_order.smooth_until(nudges, still, times) is None
+    with pytest.raises(ValueError, match="columns"):
+        event_order.smooth_until(nudges, linear, (0.1, 0.2))
+
+
+def test_smoothness_runs_measure_each_nudged_run_from_the_unmoved_one(monkeypatch):
+    from types import SimpleNamespace
+
+    from symcushion.studies.event_order import smoothness
+
+    def fake(scene, dt, keep_rows=None):
+        # a run linear in the nudge of v_y, with a jump of 1 mm after 0.25 s for nudges
+        # above 1e-8 m/s
+        t = np.linspace(0.0, 0.4, 5)
+        dv = scene.body.velocity[1] - 0.5
+        x = np.zeros((t.size, 3))
+        x[:, 1] = dv * t + np.where(t > 0.25, 1e-3 * (dv > 1e-8), 0.0)
+        return SimpleNamespace(t=t, position=x)
+    monkeypatch.setattr(smoothness, "_trajectory", fake)
+    rows = event_order.smoothness_runs(schemes=("all events",), dts=(1e-3,),
+                                       nudges=(1e-9, 1e-7), times=(0.1, 0.2, 0.3),
+                                       progress=lambda _: None)
+    (row,) = rows
+    assert row["scheme"] == "all events" and row["dt"] == 1e-3
+    np.testing.assert_allclose(row["moved"], [[1e-10, 2e-10, 3e-10], [1e-8, 2e-8, 1e-3 + 3e-8]],
+                               rtol=1e-6)
+    assert event_order.smooth_until(row["nudges"], row["moved"], (0.1, 0.2, 0.3)) == 0.2
+    text = event_order.smoothness_text(rows, times=(0.1, 0.2, 0.3))
+    line = next(x for x in text.splitlines() if x.startswith("| all events |"))
+    cells = [c.strip() for c in line.strip("|").split("|")]
+    assert cells[1:] == ["0.001", "0.2", "0.01", "0.02", "1,000"]
+
+
+def test_smoothness_runs_reject_bad_input_before_running():
+    with pytest.raises(ValueError, match="not cases of the slope lander"):
+        event_order.smoothness_runs(schemes=("no such scheme",))
+    with pytest.raises(ValueError, match="`nudges`"):
+        event_order.smoothness_runs(nudges=(1e-9, -1e-9))
+
+
+def test_time_table_head_gives_one_column_per_time_after_the_leading_cells():
+    from symcushion.studies.event_order.text import time_table_head
+    head, rule = time_table_head(("scheme", "Δt (s)"), ("---", "---:"), (0.1, 0.25))
+    assert head == "| scheme | Δt (s) | t = 0.1 s | t = 0.25 s |"
+    assert rule == "|---|---:|---:|---:|"
+    with pytest.raises(ValueError, match="`aligns`"):
+        time_table_head(("scheme", "Δt (s)"), ("---",), (0.1,))

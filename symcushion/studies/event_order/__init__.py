@@ -62,8 +62,12 @@ widths and steps and with its initial state perturbed (:func:`ladder_runs`,
 about an hour), ``--window`` only the slope lander's schemes over its first
 0.2 s, where that reference is known, with their orders there
 (:func:`window_runs`, section "Events: orders where the reference is known",
-figure ``figures/event_order_window.png``, about 5 min), ``--only TEXT`` only the cases whose scene or variant
-contains TEXT (no output written).
+figure ``figures/event_order_window.png``, about 5 min), ``--smoothness``
+only each scheme's run with its initial velocity nudged, to find where the
+run stops being a smooth function of its initial state (:func:`smoothness_runs`,
+section "Events: where each run stops being smooth", about 10 min),
+``--only TEXT`` only the cases whose scene or variant contains TEXT (no
+output written).
 """
 from __future__ import annotations
 
@@ -87,6 +91,8 @@ from .reference import (PERTURBATION_SIZES, PERTURBED, REFERENCE_LADDER, SENSITI
                         sensitivity_runs, spread)
 from .runs import (at_step, final_error, leg_reversals, orders, reversal_steps, reversals, run_case,
                    slip_fraction, write_csv)
+from .smoothness import (LINEAR_SPREAD, NUDGES, SMOOTH_DTS, SMOOTH_SCHEMES, SMOOTH_TIMES,
+                         nudged, smooth_until, smoothness_runs, smoothness_text)
 from .text import cost_ratios, report_text
 from .window import (WINDOW_REFERENCE, WINDOW_SCHEMES, WINDOW_TIMES, window_error, window_events,
                      window_orders, window_runs, window_text)
@@ -108,5 +114,6 @@ __all__ = [
     "sensitivity_runs", "slip_fraction", "spread", "switch_case",
     "switch_control", "WINDOW_REFERENCE", "WINDOW_SCHEMES", "WINDOW_TIMES", "window_error",
     "window_events", "window_orders", "window_runs", "window_text", "WINDOW_STYLE",
-    "plot_window", "write_csv",
+    "plot_window", "write_csv", "LINEAR_SPREAD", "NUDGES", "SMOOTH_DTS", "SMOOTH_SCHEMES",
+    "SMOOTH_TIMES", "nudged", "smooth_until", "smoothness_runs", "smoothness_text",
 ]

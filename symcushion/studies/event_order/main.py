@@ -17,6 +17,7 @@ from .held import held_runs, held_text
 from .limits import limit_runs, limits_text, oracle, oracle_text
 from .reference import ladder_runs, reference_text, sensitivity_runs
 from .runs import orders, run_case, write_csv
+from .smoothness import smoothness_runs, smoothness_text
 from .text import _fmt_order, report_text
 from .window import WINDOW_TIMES, window_orders, window_runs, window_text
 
@@ -45,7 +46,15 @@ def main(argv=None):
     parser.add_argument("--window", action="store_true",
                         help="run only the slope lander's schemes over its first 0.2 s, where the "
                         "regularised reference is known, and write their orders (its section)")
+    parser.add_argument("--smoothness", action="store_true",
+                        help="run only each scheme on the slope lander with its initial velocity "
+                        "nudged by tiny amounts, and write up to when its run is a smooth "
+                        "function of its initial state (its section; about 10 min)")
     args = parser.parse_args(argv)
+    if args.smoothness:
+        report.write_section(DOC, "Events: where each run stops being smooth",
+                             smoothness_text(smoothness_runs()))
+        return
     if args.window:
         result = window_runs()
         plot_window(result, window_orders(result), WINDOW_TIMES,

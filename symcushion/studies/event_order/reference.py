@@ -17,8 +17,6 @@ scene can be told apart.
 """
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 
 from symcushion.codegen import compiled_model
@@ -27,6 +25,8 @@ from symcushion.simulate import simulate
 from .cases import BUILD, CHUNK
 from .limits import regularized_scene
 from .runs import at_step
+from .smoothness import nudged
+from .text import time_table_head
 
 #: (rate_width w in m²/s, Δt in s) of the ladder, coarse to fine; the last is the
 #: ladder's reference. w = 1e-7 at 1e-8 s is 8e7 steps, about half an hour.
@@ -46,21 +46,9 @@ PERTURBATION_SIZES = (1e-6, 1e-4)
 
 def perturbed_scene(rate_width: float, field: str, index: int, size: float):
     """The regularised lander (``limits.regularized_scene``, all events) with
-    ``body[field][index]`` of its initial state moved by ``size``.
-
-    ``field`` is "position" or "velocity"; ``index`` 0, 1 or 2.
-    """
-    if field not in ("position", "velocity"):
-        raise ValueError(f"`field` must be 'position' or 'velocity', got {field!r}.")
-    if index not in (0, 1, 2):
-        raise ValueError(f"`index` must be 0, 1 or 2, got {index!r}.")
-    if not np.isfinite(size):
-        raise ValueError(f"`size` must be finite, got {size!r}.")
-    scene = regularized_scene("all events", rate_width)
-    entry = np.array(getattr(scene.body, field), dtype=float)
-    entry[index] += size
-    # the same name, so the same compiled step: x0 is not in it
-    return scene.with_(body=replace(scene.body, **{field: entry}))
+    ``body[field][index]`` of its initial state moved by ``size``
+    (``smoothness.nudged``: ``field`` "position" or "velocity", ``index`` 0–2)."""
+    return nudged(regularized_scene("all events", rate_width), field, index, size)
 
 
 def _model(scene):
@@ -123,10 +111,9 @@ def reference_text(ladder, sensitivity, run=SENSITIVITY_RUN, times=SPREAD_TIMES)
              "hour): the lander of `studies/lander_slope.toml` with its absorbers' branch "
              "switch regularised (`smooth = true`, `rate_width` w; default step) on a ladder "
              "of widths and steps. The last columns are the distance of each run's centre of "
-             "mass from the last run's at the times given (mm).", "",
-             "| w (m²/s) | Δt (s) | final centre of mass (m) | "
-             + " | ".join(f"t = {t:g} s" for t in times) + " |",
-             "|---:|---:|---|" + "---:|" * len(times)]
+             "mass from the last run's at the times given (mm).", ""]
+    lines += time_table_head(("w (m²/s)", "Δt (s)", "final centre of mass (m)"),
+                             ("---:", "---:", "---"), times)
     for r, row in zip(ladder, d):
         lines.append(f"| {r['rate_width']:g} | {r['dt']:g} | "
                      f"({', '.join(f'{x:.5f}' for x in r['final'])}) | "

@@ -1,7 +1,7 @@
 """The event-order study's docs text: the measured tables and the cost ratios.
 
-Owns the Markdown of the section "Events: measured"; it must not run
-anything.
+Owns the Markdown of the section "Events: measured" and the head of the
+tables that give a value per time; it must not run anything.
 """
 from __future__ import annotations
 
@@ -10,6 +10,16 @@ import numpy as np
 from .cases import DT_CHECK, DT_GRID, DT_REF, REVERSAL_DTS, SLIP_DT, case_label
 from .controls import SWITCH_DTS, SWITCH_REF
 from .runs import _fmt
+
+
+def time_table_head(cells, aligns, times) -> list:
+    """The two header lines of a Markdown table whose leading columns are ``cells``
+    (aligned by ``aligns``, e.g. "---:") and whose further columns are ``times`` (s)."""
+    if len(cells) != len(aligns):
+        raise ValueError(f"`aligns` must give one alignment per cell: {len(cells)} cells, "
+                         f"{len(aligns)} alignments.")
+    return ["| " + " | ".join(cells) + " | " + " | ".join(f"t = {t:g} s" for t in times) + " |",
+            "|" + "|".join(aligns) + "|" + "---:|" * len(times)]
 
 
 def _fmt_order(entry):
