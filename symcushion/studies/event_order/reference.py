@@ -25,7 +25,7 @@ from symcushion.simulate import simulate
 from .cases import BUILD, CHUNK
 from .limits import regularized_scene
 from .runs import at_step
-from .smoothness import nudged
+from .smoothness import nudged, positions_at
 from .text import time_table_head
 
 #: (rate_width w in m²/s, Δt in s) of the ladder, coarse to fine; the last is the
@@ -65,10 +65,9 @@ def spread(rows, times=SPREAD_TIMES) -> np.ndarray:
     """Distance (m) of each row's centre of mass from the last row's at ``times``:
     shape (len(rows), len(times)). Rows carry ``t`` and ``position`` (thinned runs:
     each is read at its first kept row at or after the time)."""
-    def at(row, t):
-        return row["position"][min(np.searchsorted(row["t"], t - 1e-12), len(row["t"]) - 1)]
-    last = rows[-1]
-    return np.array([[np.linalg.norm(at(r, t) - at(last, t)) for t in times] for r in rows])
+    last = positions_at(rows[-1]["t"], rows[-1]["position"], times)
+    return np.array([np.linalg.norm(positions_at(r["t"], r["position"], times) - last, axis=1)
+                     for r in rows])
 
 
 def ladder_runs(runs=REFERENCE_LADDER, progress=print) -> list:

@@ -63,10 +63,16 @@ def nudged(scene, field: str, index: int, size: float):
     return scene.with_(body=replace(scene.body, **{field: entry}))
 
 
-def _position_at(traj, times) -> np.ndarray:
-    t = np.asarray(traj.t)
+def positions_at(t, position, times) -> np.ndarray:
+    """Rows of ``position`` (one per sample time of ``t``) at ``times``: each the
+    first sample at or after the time, the last sample past the end."""
+    t = np.asarray(t)
     rows = [min(np.searchsorted(t, T - 1e-12), len(t) - 1) for T in times]
-    return np.asarray(traj.position)[rows]
+    return np.asarray(position)[rows]
+
+
+def _position_at(traj, times) -> np.ndarray:
+    return positions_at(traj.t, traj.position, times)
 
 
 def smoothness_runs(schemes=SMOOTH_SCHEMES, dts=SMOOTH_DTS, nudges=NUDGES,
