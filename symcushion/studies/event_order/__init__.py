@@ -73,7 +73,7 @@ from __future__ import annotations
 
 from .cases import (BRANCH_VARIANTS, BUILD, CHUNK, COLUMNS, DOC, DT_CHECK, DT_GRID, DT_REF,
                     ERROR_KEYS, EVENT_OPTIONS, FIGURES, FLAT_GAP, REVERSAL_DTS, ROOT, SLIP_DT,
-                    SLIP_RULES, STICK_MU, STUDIES, VARIANTS, case_label, scenes)
+                    SLIP_RULES, STICK_MU, STUDIES, VARIANTS, case_label, scenes, slope_cases)
 from .cases import _variant_data  # noqa: F401 - the tests build a variant's scene data with it
 from .controls import (CONTROLS, CONTROL_DTS, CONTROL_DT_REF, CONTROL_DURATION, CONTROL_STIFFNESS,
                        COST_DT, COST_ROUNDS, SETTLE_DT, STARTS, SWITCH_DTS,
@@ -89,8 +89,8 @@ from .main import main
 from .reference import (PERTURBATION_SIZES, PERTURBED, REFERENCE_LADDER, SENSITIVITY_RUN,
                         SPREAD_TIMES, ladder_runs, perturbed_scene, reference_text,
                         sensitivity_runs, spread)
-from .runs import (at_step, final_error, leg_reversals, orders, reversal_steps, reversals, run_case,
-                   slip_fraction, write_csv)
+from .runs import (at_step, final_error, leg_reversals, orders, positions_at, reversal_steps,
+                   reversals, run_case, slip_fraction, write_csv)
 from .smoothness import (LINEAR_SPREAD, NUDGES, SMOOTH_DTS, SMOOTH_SCHEMES, SMOOTH_TIMES,
                          nudged, smooth_until, smoothness_runs, smoothness_text)
 from .text import cost_ratios, report_text
@@ -115,5 +115,5 @@ __all__ = [
     "switch_control", "WINDOW_REFERENCE", "WINDOW_SCHEMES", "WINDOW_TIMES", "window_error",
     "window_events", "window_orders", "window_runs", "window_text", "WINDOW_STYLE",
     "plot_window", "write_csv", "LINEAR_SPREAD", "NUDGES", "SMOOTH_DTS", "SMOOTH_SCHEMES",
-    "SMOOTH_TIMES", "nudged", "smooth_until", "smoothness_runs", "smoothness_text",
+    "SMOOTH_TIMES", "nudged", "smooth_until", "smoothness_runs", "smoothness_text", "slope_cases", "positions_at",
 ]

@@ -1,8 +1,8 @@
 """The event-order study's cases: paths, Δt grid, variants and the scenes they build.
 
 Owns the study's constants (each with a comment saying why its value), the
-labels of its cases and how a variant changes the lander's scene data. It
-must not run, measure or write anything.
+labels of its cases, how a variant changes the lander's scene data and the
+slope lander's cases by label. It must not run, measure or write anything.
 """
 from __future__ import annotations
 
@@ -109,3 +109,14 @@ def scenes():
         out.append(("lander_hop", case_label(*c), c[1],
                     scene_from_dict(_variant_data(hop, *c), f"lander_hop.toml:{case_label(*c)}")))
     return out
+
+
+def slope_cases(labels) -> dict:
+    """The slope lander's cases of ``labels`` (case labels of :func:`scenes`), by label;
+    a ValueError naming the unknown ones and the known labels otherwise."""
+    by_label = {label: scene for name, label, _, scene in scenes() if name == "lander_slope"}
+    unknown = [label for label in labels if label not in by_label]
+    if unknown:
+        raise ValueError(f"`schemes` holds {unknown!r}, not cases of the slope lander; use "
+                         f"some of {sorted(by_label)}.")
+    return {label: by_label[label] for label in labels}

@@ -24,8 +24,8 @@ from symcushion.simulate import simulate
 
 from .cases import BUILD, CHUNK
 from .limits import regularized_scene
-from .runs import at_step
-from .smoothness import nudged, positions_at
+from .runs import at_step, positions_at
+from .smoothness import nudged
 from .text import time_table_head
 
 #: (rate_width w in m²/s, Δt in s) of the ladder, coarse to fine; the last is the

@@ -1,8 +1,8 @@
 """The event-order study's runs: the reference, the grid of Δt, errors, orders and the CSV.
 
-Owns running one case (compiled C, the reference and its check), the
-errors of a run against the reference, the stroke reversals of a leg, the
-fitted orders and the CSV. It must not plot or write the docs.
+Owns running one case (compiled C, the reference and its check), reading a
+run's positions at given times, the errors of a run against the reference,
+the stroke reversals of a leg, the fitted orders and the CSV. It must not plot or write the docs.
 """
 from __future__ import annotations
 
@@ -28,6 +28,14 @@ def final_error(run, ref) -> float:
     dx = np.linalg.norm(run.position[-1] - ref.position[k]) / travel
     dv = np.linalg.norm(run.velocity[-1] - ref.velocity[k]) / np.linalg.norm(ref.velocity[0])
     return float(max(dx, dv))
+
+
+def positions_at(t, position, times) -> np.ndarray:
+    """Rows of ``position`` (one per sample time of ``t``) at ``times``: each the
+    first sample at or after the time, the last sample past the end."""
+    t = np.asarray(t)
+    rows = [min(np.searchsorted(t, T - 1e-12), len(t) - 1) for T in times]
+    return np.asarray(position)[rows]
 
 
 def at_step(model, scene, dt):

@@ -26,8 +26,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from .cases import scenes
+from .cases import slope_cases
 from .limits import _trajectory
+from .runs import positions_at
 from .text import time_table_head
 
 #: The schemes nudged (case labels of ``cases.scenes()`` on the slope lander).
@@ -63,14 +64,6 @@ def nudged(scene, field: str, index: int, size: float):
     return scene.with_(body=replace(scene.body, **{field: entry}))
 
 
-def positions_at(t, position, times) -> np.ndarray:
-    """Rows of ``position`` (one per sample time of ``t``) at ``times``: each the
-    first sample at or after the time, the last sample past the end."""
-    t = np.asarray(t)
-    rows = [min(np.searchsorted(t, T - 1e-12), len(t) - 1) for T in times]
-    return np.asarray(position)[rows]
-
-
 def _position_at(traj, times) -> np.ndarray:
     return positions_at(traj.t, traj.position, times)
 
@@ -80,11 +73,7 @@ def smoothness_runs(schemes=SMOOTH_SCHEMES, dts=SMOOTH_DTS, nudges=NUDGES,
     """One row per scheme and Δt: ``scheme``, ``dt``, ``nudges`` (m/s, (k,)) and
     ``moved`` (m, (k, len(times)): each nudged run's distance from the unmoved
     run at ``times``)."""
-    by_label = {label: scene for name, label, _, scene in scenes() if name == "lander_slope"}
-    unknown = [scheme for scheme in schemes if scheme not in by_label]
-    if unknown:
-        raise ValueError(f"`schemes` holds {unknown!r}, not cases of the slope lander; use "
-                         f"some of {sorted(by_label)}.")
+    by_label = slope_cases(schemes)
     nudges = np.asarray(nudges, dtype=float)
     if nudges.ndim != 1 or nudges.size == 0 or not np.all(np.isfinite(nudges)) \
             or np.any(nudges <= 0):

@@ -34,7 +34,7 @@ import numpy as np
 from symcushion.driver import MAX_EVENTS
 from symcushion.studies.speed_vs_error import convergence_order
 
-from .cases import DT_GRID, scenes
+from .cases import DT_GRID, slope_cases
 from .limits import _trajectory, regularized_scene
 from .runs import reversal_steps
 
@@ -110,11 +110,7 @@ def window_runs(schemes=WINDOW_SCHEMES, dts=DT_GRID, progress=print) -> dict:
     ``dt``, ``errors`` and ``own`` in m per window, from the reference and
     from the scheme's own run at :data:`OWN_DT`).
     """
-    by_label = {label: scene for name, label, _, scene in scenes() if name == "lander_slope"}
-    unknown = [scheme for scheme in schemes if scheme not in by_label]
-    if unknown:
-        raise ValueError(f"`schemes` holds {unknown!r}, not cases of the slope lander; use "
-                         f"some of {sorted(by_label)}.")
+    by_label = slope_cases(schemes)
     (w, dt), (w_check, dt_check) = WINDOW_REFERENCE
     ref = _run(regularized_scene("all events", w), dt, KEEP_ROWS)
     progress(f"window reference: w = {w:g}, dt = {dt:g} s")
