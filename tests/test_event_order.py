@@ -237,7 +237,17 @@ def test_oracle_text_measures_every_run_from_the_finest_regularised_one():
     text = event_order.oracle_text(rows)
     line = next(l for l in text.splitlines() if l.startswith("| flat | default"))
     assert line.rstrip(" |").endswith("63.00")
-    assert sum(l.rstrip(" |").endswith("| 0.00") for l in text.splitlines()) == 3
+    assert sum(l.rstrip(" |").endswith("| 0.00") for l in text.splitlines()) == len(
+        event_order.ORACLE_VARIANTS)
+
+
+def test_the_hop_lander_has_a_regularised_reference_of_its_own():
+    scene = event_order.regularized_scene("all events", 1e-6, "lander_hop")
+    assert len(scene.legs) == 3
+    assert scene.name.startswith("lander_hop") and scene.name.endswith("-regularised-1e-06")
+    S = next(el for el in scene.legs[0].elements if el.name == "S").curve
+    assert S.smooth and S.rate_width == 1e-6
+    assert set(event_order.ORACLE_SCENES) == set(event_order.ORACLE_VARIANTS)
 
 
 def test_interior_rates_tell_the_held_rate_of_2_1_from_the_stroke_rate():

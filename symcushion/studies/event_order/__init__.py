@@ -82,7 +82,8 @@ from .controls import (CONTROLS, CONTROL_DTS, CONTROL_DT_REF, CONTROL_DURATION, 
                        settled, switch_case, switch_control)
 from .figure import LINES, PANELS, STYLE, WINDOW_STYLE, plot, plot_window
 from .held import HELD_RUNS, SIGMA_BAND, held_runs, held_text, interior_rates
-from .limits import (LIMIT_DTS, LIMIT_SCHEMES, ORACLE_DT, ORACLE_RUNS, ORACLE_VARIANTS,
+from .limits import (LIMIT_DTS, LIMIT_SCHEMES, ORACLE_DT, ORACLE_DTS, ORACLE_RUNS,
+                     ORACLE_SCENES, ORACLE_VARIANTS,
                      limit_runs, limits_text, oracle, oracle_text, regularized_scene,
                      slip_at_reversals)
 from .main import main
@@ -103,7 +104,8 @@ __all__ = [
     "DT_GRID", "DT_REF", "ERROR_KEYS", "EVENT_OPTIONS", "FIGURES", "FLAT_GAP", "HELD_RUNS",
     "LIMIT_DTS",
     "LIMIT_SCHEMES", "LINES", "ORACLE_DT", "PERTURBATION_SIZES", "PERTURBED", "REFERENCE_LADDER",
-    "SENSITIVITY_RUN", "SPREAD_TIMES", "ORACLE_RUNS", "ORACLE_VARIANTS", "PANELS", "REVERSAL_DTS",
+    "SENSITIVITY_RUN", "SPREAD_TIMES", "ORACLE_DTS", "ORACLE_RUNS", "ORACLE_SCENES",
+    "ORACLE_VARIANTS", "PANELS", "REVERSAL_DTS",
     "ROOT", "SETTLE_DT", "SIGMA_BAND", "SLIP_DT", "SLIP_RULES", "STARTS", "STICK_MU", "STUDIES", "STYLE",
     "SWITCH_DTS", "SWITCH_KICK", "SWITCH_REF", "VARIANTS", "at_step", "case_label",
     "control_scene", "controls", "controls_text", "cost_check", "cost_ratios", "cost_text",

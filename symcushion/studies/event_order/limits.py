@@ -53,17 +53,29 @@ SLIP_MODE = 2
 #: without a sliding foot; each w needs a Δt that resolves its blend (the
 #: rate's scale w/|x| against the leg's force gap and mass).
 ORACLE_RUNS = ((1e-5, 1e-6), (1e-6, 3e-7))
-#: Variants of the lander compared with that reference: feet that stick,
-#: some sliding feet (level ground, μ = 0.4), and the 10° slope.
-ORACLE_VARIANTS = ("stick, flat", "flat", "all events")
-#: Δt of the default step and the lock in that comparison (s).
-ORACLE_DT = 1e-6
+#: Variants compared with that reference: the slope lander's feet that stick,
+#: some sliding feet (level ground, μ = 0.4), and the 10° slope; and the
+#: three-legged lander that hops (``studies/lander_hop.toml``), whose held leg
+#: meets the friction cone three times at about 0.1 s.
+ORACLE_VARIANTS = ("stick, flat", "flat", "all events", "hop")
+#: The scene file and the lander variant (``cases.VARIANTS``) of each compared variant.
+ORACLE_SCENES = {"stick, flat": ("lander_slope", "stick, flat"),
+                 "flat": ("lander_slope", "flat"),
+                 "all events": ("lander_slope", "all events"),
+                 "hop": ("lander_hop", "all events")}
+#: Δt of the default step and the lock in that comparison (s): the study's
+#: usual step and its reference's.
+ORACLE_DTS = (1e-3, 1e-6)
+ORACLE_DT = ORACLE_DTS[-1]
 #: The sentence that opens the comparison's table.
 ORACLE_INTRO = ("The reference for the held rate of (2.1): the same lander with its absorbers' "
                 "branch switch regularised (`smooth = true`, the blend 0.5(1 + tanh(x·ẋ/w)) "
                 "of the two curves, `rate_width` w; default step), at a Δt that resolves the "
-                "blend, against the default step and the lock at 1e-6 s. Distances are from "
-                "the finest regularised run of each variant.")
+                "blend, against the default step and the lock at 1e-3 and 1e-6 s: the slope "
+                "lander's variants, and the three-legged lander that hops "
+                "(`studies/lander_hop.toml`, \"hop\"). Distances are from the finest "
+                "regularised run of each variant; the two regularised runs' distance is how "
+                "well that reference is known.")
 
 
 def slip_at_reversals(traj) -> dict:
@@ -110,14 +122,14 @@ def limit_runs(progress=print) -> list:
     return rows
 
 
-def regularized_scene(variant: str, rate_width: float):
-    """The lander of ``studies/lander_slope.toml`` with the events of ``variant`` removed
+def regularized_scene(variant: str, rate_width: float, scene: str = "lander_slope"):
+    """The lander of ``studies/<scene>.toml`` with the events of ``variant`` removed
     (``cases._variant_data``) and its absorbers' branch switch regularised: ``smooth =
     true`` and ``rate_width`` on the axial element ``S``; default step."""
-    data = _variant_data(read_toml(STUDIES / "lander_slope.toml"), variant)
+    data = _variant_data(read_toml(STUDIES / f"{scene}.toml"), variant)
     data["legs"]["S"].update(smooth=True, rate_width=rate_width)
     data["scene"]["name"] = f"{data['scene']['name']}-regularised-{rate_width:g}"
-    return scene_from_dict(data, f"lander_slope.toml:{variant} (rate_width {rate_width:g})")
+    return scene_from_dict(data, f"{scene}.toml:{variant} (rate_width {rate_width:g})")
 
 
 def _trajectory(scene, dt, keep_rows=None):
@@ -138,10 +150,12 @@ def oracle(progress=print) -> list:
     by_label = {(name, label): scene for name, label, _, scene in scenes()}
     rows = []
     for variant in ORACLE_VARIANTS:
-        runs = [("default", np.nan, by_label["lander_slope", variant], ORACLE_DT),
-                ("lock", np.nan,
-                 by_label["lander_slope", case_label(variant, "midpoint", "lock")], ORACLE_DT)]
-        runs += [("regularised", w, regularized_scene(variant, w), dt) for w, dt in ORACLE_RUNS]
+        name, case = ORACLE_SCENES[variant]
+        runs = [(scheme, np.nan, by_label[name, label], dt) for dt in ORACLE_DTS
+                for scheme, label in (("default", case),
+                                      ("lock", case_label(case, "midpoint", "lock")))]
+        runs += [("regularised", w, regularized_scene(case, w, name), dt)
+                 for w, dt in ORACLE_RUNS]
         for scheme, w, scene, dt in runs:
             final = np.asarray(_trajectory(scene, dt).position[-1], dtype=float)
             rows.append(dict(variant=variant, scheme=scheme, rate_width=w, dt=dt, final=final))
