@@ -7,8 +7,9 @@ where it converges: the final position of the centre of mass, the slipping
 share of the contact samples, the share of the stroke reversals at which
 the foot slips, and each foot's sliding path (:func:`limit_runs`); and the
 reference both are compared with, the same lander with its absorbers'
-branch switch regularised and resolved (:func:`oracle`). It must not fit
-orders or write files (``main`` writes its section).
+branch switch regularised and resolved (:func:`oracle`; also for the
+three-legged lander that hops, whose held leg meets the friction cone).
+It must not fit orders or write files (``main`` writes its section).
 
 Why: the two schemes converge to final positions a centimetre apart. The
 default step takes the branch of each step from the sign of its stroke
