@@ -7,6 +7,8 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+from .results import atomic_write_text
+
 __all__ = ["write_section"]
 
 
@@ -33,4 +35,4 @@ def write_section(path, heading: str, body: str, title: str = "# Results") -> No
     else:
         text = text.rstrip() + "\n\n" + block
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(text)
+    atomic_write_text(path, text)      # a killed study leaves the old page whole

@@ -494,6 +494,39 @@ def test_the_lock_splits_its_direct_switches_and_keeps_second_order():
     assert order >= MIN_SECOND_ORDER, (order, errors)
 
 
+#: Δt of the hop lander's fit (s): five halvings down to 0.125 ms, and its
+#: reference and check, 12.5× and 6.25× below the finest.
+HOP_DTS = (2e-3, 1e-3, 5e-4, 2.5e-4, 1.25e-4)
+HOP_REF = (1e-5, 2e-5)
+#: The final-state error the lander with a hop must stay below at Δt = 1 ms.
+HOP_TARGET = 5e-3
+
+
+def test_the_hop_lander_ends_within_half_a_percent_at_one_millisecond():
+    """The three-legged lander that hops (``studies/lander_hop.toml``), whole run,
+    with the midpoint slip rule and the stroke lock: the final state at Δt = 1 ms
+    is within 0.5 % of the reference (0.36 % measured; the default step 0.83 %),
+    and the error falls at every halving of Δt (by more than the reference's own
+    error). The reference is the same scheme at 10 µs, checked against 20 µs
+    (4e-5); ``event_order.final_error`` is the larger of
+    the position error over the travel and the velocity error over |v(0)|."""
+    scene = read_toml(ROOT / "studies" / "lander_hop.toml")
+    scene = scene_from_dict(scene, "lander_hop.toml").with_(slip="midpoint", events="lock")
+    model = build_model(scene)
+
+    def run(dt):
+        return simulate(scene.with_(dt=dt), model=model, monitor=False)
+
+    ref = run(HOP_REF[0])
+    ref_error = event_order.final_error(run(HOP_REF[1]), ref)
+    errors = np.array([event_order.final_error(run(dt), ref) for dt in HOP_DTS])
+    at_1ms = errors[HOP_DTS.index(1e-3)]
+    assert ref_error < REFERENCE_SHARE * at_1ms, (ref_error, errors)
+    assert at_1ms < HOP_TARGET, errors
+    # each halving cuts the error by more than twice the reference's own error
+    assert np.all(-np.diff(errors) > 2 * ref_error), (ref_error, errors)
+
+
 def test_nudged_moves_one_entry_of_the_initial_state_and_keeps_the_name():
     base = next(sc for name, label, _, sc in event_order.scenes()
                 if name == "lander_slope" and label == "all events")
@@ -567,3 +600,44 @@ def test_time_table_head_gives_one_column_per_time_after_the_leading_cells():
     assert rule == "|---|---:|---:|---:|"
     with pytest.raises(ValueError, match="`aligns`"):
         time_table_head(("scheme", "Δt (s)"), ("---",), (0.1,))
+
+
+def test_ulp_nudge_is_the_step_to_the_next_double():
+    for value in (0.5, -2.0, 1e-300, 0.0):
+        step = event_order.ulp_nudge(value)
+        assert step > 0 and value + step == np.nextafter(value, np.inf)
+    with pytest.raises(ValueError, match="`value`"):
+        event_order.ulp_nudge(float("nan"))
+
+
+def test_roundoff_runs_measure_each_run_against_its_one_ulp_twin(monkeypatch):
+    from types import SimpleNamespace
+
+    from symcushion.studies.event_order import roundoff
+
+    def fake(scene, dt, keep_rows=None):
+        # a run that moves by 1 µm after 0.15 s for any change of v_y, however small
+        t = np.linspace(0.0, 0.3, 7)
+        x = np.zeros((t.size, 3))
+        x[:, 0] = np.where(t > 0.15, 1e-6 * (scene.body.velocity[1] != 0.5), 0.0)
+        return SimpleNamespace(t=t, position=x)
+    monkeypatch.setattr(roundoff, "_trajectory", fake)
+    rows = event_order.roundoff_runs(schemes=("all events",), dts=(1e-4,),
+                                     regularised=((1e-5, 1e-6),), times=(0.1, 0.2),
+                                     progress=lambda _: None)
+    assert [r["scheme"] for r in rows] == ["all events", "regularised reference (w = 1e-05 m²/s)"]
+    assert [r["dt"] for r in rows] == [1e-4, 1e-6]
+    for r in rows:
+        assert r["nudge"] == event_order.ulp_nudge(0.5)
+        np.testing.assert_allclose(r["moved"], [0.0, 1e-6])
+    text = event_order.roundoff_text(rows, times=(0.1, 0.2))
+    line = next(x for x in text.splitlines() if x.startswith("| all events |"))
+    assert [c.strip() for c in line.strip("|").split("|")] == ["all events", "0.0001", "1.1e-16",
+                                                               "0", "1"]
+
+
+def test_roundoff_runs_reject_bad_input_before_running():
+    with pytest.raises(ValueError, match="not cases of the slope lander"):
+        event_order.roundoff_runs(schemes=("no such scheme",))
+    with pytest.raises(ValueError, match="`dts`"):
+        event_order.roundoff_runs(dts=(1e-4, 0.0))

@@ -62,10 +62,14 @@ widths and steps and with its initial state perturbed (:func:`ladder_runs`,
 about an hour), ``--window`` only the slope lander's schemes over its first
 0.2 s, where that reference is known, with their orders there
 (:func:`window_runs`, section "Events: orders where the reference is known",
-figure ``figures/event_order_window.png``, about 5 min), ``--smoothness``
+figure ``figures/event_order_window.png``, about 8 min), ``--smoothness``
 only each scheme's run with its initial velocity nudged, to find where the
 run stops being a smooth function of its initial state (:func:`smoothness_runs`,
 section "Events: where each run stops being smooth", about 10 min),
+``--roundoff`` only the default step, the lock and the regularised reference
+with their initial velocity moved by one ulp, the floor under what each run
+resolves in double precision (:func:`roundoff_runs`, section "Events: what
+double precision resolves", about 8 min),
 ``--only TEXT`` only the cases whose scene or variant contains TEXT (no
 output written).
 """
@@ -92,8 +96,10 @@ from .reference import (PERTURBATION_SIZES, PERTURBED, REFERENCE_LADDER, SENSITI
                         sensitivity_runs, spread)
 from .runs import (at_step, final_error, leg_reversals, orders, positions_at, reversal_steps,
                    reversals, run_case, slip_fraction, write_csv)
+from .roundoff import (REGULARISED_RUNS, ROUNDOFF_DTS, ROUNDOFF_SCHEMES, roundoff_runs,
+                       roundoff_text, ulp_nudge)
 from .smoothness import (LINEAR_SPREAD, NUDGES, SMOOTH_DTS, SMOOTH_SCHEMES, SMOOTH_TIMES,
-                         nudged, smooth_until, smoothness_runs, smoothness_text)
+                         micrometres, nudged, smooth_until, smoothness_runs, smoothness_text)
 from .text import cost_ratios, report_text
 from .window import (WINDOW_REFERENCE, WINDOW_SCHEMES, WINDOW_TIMES, window_error, window_events,
                      window_orders, window_runs, window_text)
@@ -118,4 +124,6 @@ __all__ = [
     "window_events", "window_orders", "window_runs", "window_text", "WINDOW_STYLE",
     "plot_window", "write_csv", "LINEAR_SPREAD", "NUDGES", "SMOOTH_DTS", "SMOOTH_SCHEMES",
     "SMOOTH_TIMES", "nudged", "smooth_until", "smoothness_runs", "smoothness_text", "slope_cases", "positions_at",
+    "REGULARISED_RUNS", "ROUNDOFF_DTS", "ROUNDOFF_SCHEMES", "micrometres", "roundoff_runs",
+    "roundoff_text", "ulp_nudge",
 ]

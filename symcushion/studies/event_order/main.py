@@ -17,6 +17,7 @@ from .held import held_runs, held_text
 from .limits import limit_runs, limits_text, oracle, oracle_text
 from .reference import ladder_runs, reference_text, sensitivity_runs
 from .runs import orders, run_case, write_csv
+from .roundoff import roundoff_runs, roundoff_text
 from .smoothness import smoothness_runs, smoothness_text
 from .text import _fmt_order, report_text
 from .window import WINDOW_TIMES, window_orders, window_runs, window_text
@@ -50,7 +51,15 @@ def main(argv=None):
                         help="run only each scheme on the slope lander with its initial velocity "
                         "nudged by tiny amounts, and write up to when its run is a smooth "
                         "function of its initial state (its section; about 10 min)")
+    parser.add_argument("--roundoff", action="store_true",
+                        help="run only the default step, the stroke lock and the regularised "
+                        "reference with the initial velocity moved by one ulp, and write how far "
+                        "that moves each run (its section; about 8 min)")
     args = parser.parse_args(argv)
+    if args.roundoff:
+        report.write_section(DOC, "Events: what double precision resolves",
+                             roundoff_text(roundoff_runs()))
+        return
     if args.smoothness:
         report.write_section(DOC, "Events: where each run stops being smooth",
                              smoothness_text(smoothness_runs()))
