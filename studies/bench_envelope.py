@@ -29,7 +29,7 @@ halved.
 
 Reference (``--reference``): the first 200 cases with the study's step and
 with the absorbers' branch switch regularised (:data:`REGULARISED_WIDTH`), the
-reference for the held stroke of docs/speed-vs-error.md.
+reference for the held stroke of docs/event-order.md.
 
 With ``--refine`` the midpoint rule with and without the lock at Δt = 0.5
 down to 0.0625 ms, with the CPU per case of each run.
@@ -304,7 +304,7 @@ def class_changes(n: int = CHANGE_CASES, dts=CHANGE_DTS, schemes=SCHEMES, *,
 #: The regularised reference of ``--reference``: the absorbers' branch switch
 #: blended over rate_width (m²/s; ``smooth = true``), resolved at REGULARISED_DT
 #: (s), on the first REGULARISED_CASES cases. On the 10° lander this width ends
-#: 7 mm from the finest regularised run, the lock 54 mm (docs/speed-vs-error.md,
+#: 7 mm from the finest regularised run, the lock 54 mm (docs/event-order.md,
 #: "Events: two limits on the slope"); a finer width costs ten times as much.
 REGULARISED_WIDTH = 1e-4
 REGULARISED_DT = 1e-5

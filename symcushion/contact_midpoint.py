@@ -38,7 +38,7 @@ rotation from the crossing to the end, to first order
 T the body's rotation over the step (the input ``turn`` is T − I) and
 α_c the crossing's place in the step. Without it the rule mixes two frames:
 an O(ω Δt) error in the slip direction in every slipping step, first order
-over a slide (the slope lander, docs/speed-vs-error.md, "The midpoint slip
+over a slide (the slope lander, docs/event-order.md, "The midpoint slip
 rule mixed two frames"). ``turn`` defaults to zero (a body that does not
 turn, or the rule alone).
 

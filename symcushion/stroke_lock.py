@@ -41,10 +41,10 @@ stored branch; 1 is the loading curve).
 point along the strut (``symcushion.strut``). That is δ_S′ only while the
 foot sticks, which is where this lock holds. Where the foot slides, the
 closure holds V·e_S and the stroke moves with the foot (measured with a
-regularised switch: docs/speed-vs-error.md, "Events: what the regularised
+regularised switch: docs/event-order.md, "Events: what the regularised
 switch holds"). A sliding foot has no lock here: its stroke reversal keeps
 the located branch switch of ``symcushion.branch_switch``
-(docs/speed-vs-error.md says what that costs).
+(docs/event-order.md says what that costs).
 
 This module must not call the contact step, change the drift or decide the
 order of the step's work; it returns forces, residuals and masks.

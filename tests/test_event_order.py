@@ -1,6 +1,6 @@
 """Convergence order of the lander without events, and with its feet sliding.
 
-The event-order study (studies/event_order.py; docs/speed-vs-error.md,
+The event-order study (studies/event_order.py; docs/event-order.md,
 "Events and the order of the step") measures the lander's orders over the
 full Δt grid with compiled code; these tests check, on the VM and short
 horizons, the two findings its conclusion rests on:

@@ -2,7 +2,7 @@
 
 The control is a model of its own (a planar body on two legs with stuck
 feet), independent of the package, with an event-driven Filippov reference.
-These tests pin its findings (docs/speed-vs-error.md, "A planar control of
+These tests pin its findings (docs/event-order.md, "A planar control of
 the lock"): the chord branch rule converges at first order where a stroke
 locks, the RATTLE lock with the holding-force test at second order and with
 the reference's lock episodes; where a stroke also reverses without locking

@@ -45,7 +45,7 @@ start as built and from a settled start (:func:`settled`).
 
 Output: ``figures/event_order.csv`` (one row per scene, variant and Δt),
 ``figures/event_order.png``, and the sections "Events: measured" and
-"Events: controls" of ``docs/speed-vs-error.md``. Run from the repository
+"Events: controls" of ``docs/event-order.md``. Run from the repository
 root: ``python studies/event_order.py`` (seventeen cases, 7 min on the
 shared 2-core machine with other jobs running, plus gcc the first time;
 builds are cached in ``build/event_order/``); ``--controls`` runs only the

@@ -16,7 +16,7 @@ from symcushion.scene import read_toml, scene_from_dict
 ROOT = Path(__file__).resolve().parents[3]
 STUDIES = ROOT / "studies"
 FIGURES = ROOT / "figures"
-DOC = ROOT / "docs" / "speed-vs-error.md"
+DOC = ROOT / "docs" / "event-order.md"
 BUILD = ROOT / "build" / "event_order"
 
 #: Δt of the fits (s): 1e-2 to 1e-4, about three per decade; each divides the

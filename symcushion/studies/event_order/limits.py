@@ -14,7 +14,7 @@ It must not fit orders or write files (``main`` writes its section).
 Why: the two schemes converge to final positions a centimetre apart. The
 default step takes the branch of each step from the sign of its stroke
 change, so a leg whose absorber the model holds between its curves
-alternates between them step after step (docs/speed-vs-error.md, "The
+alternates between them step after step (docs/event-order.md, "The
 stroke lock on the lander"); its foot then sees a force that jumps by the
 gap between the curves at every step, however small the step, and
 Coulomb's law responds to each half of that alternation rather than to its
