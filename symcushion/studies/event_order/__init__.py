@@ -62,14 +62,15 @@ widths and steps and with its initial state perturbed (:func:`ladder_runs`,
 about an hour), ``--window`` only the slope lander's schemes over its first
 0.2 s, where that reference is known, with their orders there
 (:func:`window_runs`, section "Events: orders where the reference is known",
-figure ``figures/event_order_window.png``, about 8 min), ``--smoothness``
+figure ``figures/event_order_window.png``, about 5 min), ``--smoothness``
 only each scheme's run with its initial velocity nudged, to find where the
 run stops being a smooth function of its initial state (:func:`smoothness_runs`,
 section "Events: where each run stops being smooth", about 10 min),
 ``--roundoff`` only the default step, the lock and the regularised reference
 with their initial velocity moved by one ulp, the floor under what each run
 resolves in double precision (:func:`roundoff_runs`, section "Events: what
-double precision resolves", about 8 min),
+double precision resolves", figure ``figures/event_order_roundoff.png``,
+about 8 min),
 ``--only TEXT`` only the cases whose scene or variant contains TEXT (no
 output written).
 """
@@ -84,7 +85,7 @@ from .controls import (CONTROLS, CONTROL_DTS, CONTROL_DT_REF, CONTROL_DURATION, 
                        SWITCH_KICK, SWITCH_REF, control_scene, controls,
                        controls_text, cost_check, cost_text, final_state,
                        settled, switch_case, switch_control)
-from .figure import LINES, PANELS, STYLE, WINDOW_STYLE, plot, plot_window
+from .figure import LINES, PANELS, STYLE, WINDOW_STYLE, plot, plot_roundoff, plot_window
 from .held import HELD_RUNS, SIGMA_BAND, held_runs, held_text, interior_rates
 from .limits import (LIMIT_DTS, LIMIT_SCHEMES, ORACLE_DT, ORACLE_DTS, ORACLE_RUNS,
                      ORACLE_SCENES, ORACLE_VARIANTS,
@@ -96,7 +97,8 @@ from .reference import (PERTURBATION_SIZES, PERTURBED, REFERENCE_LADDER, SENSITI
                         sensitivity_runs, spread)
 from .runs import (at_step, final_error, leg_reversals, orders, positions_at, reversal_steps,
                    reversals, run_case, slip_fraction, write_csv)
-from .roundoff import (REGULARISED_RUNS, ROUNDOFF_DTS, ROUNDOFF_SCHEMES, roundoff_runs,
+from .roundoff import (FIT_RANGE, ORDER_AIM, REGULARISED_RUNS, ROUNDOFF_DTS, ROUNDOFF_SCHEMES,
+                       coarse_errors, needed_reference, needed_references, roundoff_runs,
                        roundoff_text, ulp_nudge)
 from .smoothness import (LINEAR_SPREAD, NUDGES, SMOOTH_DTS, SMOOTH_SCHEMES, SMOOTH_TIMES,
                          micrometres, nudged, smooth_until, smoothness_runs, smoothness_text)
@@ -125,5 +127,6 @@ __all__ = [
     "plot_window", "write_csv", "LINEAR_SPREAD", "NUDGES", "SMOOTH_DTS", "SMOOTH_SCHEMES",
     "SMOOTH_TIMES", "nudged", "smooth_until", "smoothness_runs", "smoothness_text", "slope_cases", "positions_at",
     "REGULARISED_RUNS", "ROUNDOFF_DTS", "ROUNDOFF_SCHEMES", "micrometres", "roundoff_runs",
-    "roundoff_text", "ulp_nudge",
+    "roundoff_text", "ulp_nudge", "FIT_RANGE", "ORDER_AIM", "coarse_errors",
+    "needed_reference", "needed_references", "plot_roundoff",
 ]

@@ -133,3 +133,49 @@ def plot_window(result, fits, times, path):
     with replacing(path) as tmp:
         fig.savefig(tmp, dpi=110, format="png")
     plt.close(fig)
+
+
+def plot_roundoff(rows, need, path):
+    """How far one ulp of the initial velocity moves each run against time (the
+    ``curve`` of each row of ``roundoff.roundoff_runs``), with the reference
+    accuracy each scheme's whole-run fit needs (``need``: scheme → m RMS,
+    ``roundoff.needed_references``) as wide pale lines. Distances of zero are left
+    out (log axis). The file is written atomically."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from symcushion.results import replacing
+
+    fig, ax = plt.subplots(figsize=(9.5, 6))
+    styles = ("-", "--", ":")
+    seen, spare = {}, iter(("tab:purple", "tab:olive", "tab:cyan", "tab:pink"))
+    for r in rows:
+        k = seen[r["scheme"]] = seen.get(r["scheme"], -1) + 1      # the scheme's k-th Δt
+        colour = WINDOW_STYLE[r["scheme"]][0] if r["scheme"] in WINDOW_STYLE else None
+        if colour is None:                                       # a regularised reference
+            colour, k = next(spare), 0
+        um = 1e6 * np.asarray(r["curve"], float)
+        step = max(1, um.size // 2000)
+        t, um = np.asarray(r["curve_t"])[::step], um[::step]
+        ax.plot(t[um > 0], um[um > 0], styles[k % 3], color=colour, lw=1.1,
+                label=f"{r['scheme']}, Δt = {r['dt']:g} s (RMS {1e6 * r['rms']:.2g} µm)")
+    for scheme, value in need.items():
+        colour = WINDOW_STYLE.get(scheme, ("tab:green", "v"))[0]
+        ax.axhline(1e6 * value, color=colour, lw=5, alpha=0.25,
+                   label=f"reference a whole-run fit of {scheme} needs "
+                         f"({1e6 * value:.2g} µm RMS)")
+    ax.set_yscale("log")
+    ax.set_xlabel("t (s)")
+    ax.set_ylabel("distance between the run and its twin (µm)")
+    ax.grid(True, which="major", alpha=0.3)
+    ax.legend(fontsize=7, loc="lower right")
+    nudge = rows[0]["nudge"] if rows else float("nan")
+    ax.set_title("10° lander (studies/lander_slope.toml): how far the centre of mass moves when "
+                 f"the initial velocity\nacross the slope changes by one ulp ({nudge:.2g} m/s), "
+                 "each run against its unmoved twin", fontsize=10)
+    fig.tight_layout()
+    with replacing(path) as tmp:
+        fig.savefig(tmp, dpi=110, format="png")
+    plt.close(fig)

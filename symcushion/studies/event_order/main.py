@@ -12,12 +12,12 @@ from symcushion import report
 
 from .cases import DOC, FIGURES, scenes
 from .controls import controls, controls_text, cost_check, cost_text, switch_case
-from .figure import plot, plot_window
+from .figure import plot, plot_roundoff, plot_window
 from .held import held_runs, held_text
 from .limits import limit_runs, limits_text, oracle, oracle_text
 from .reference import ladder_runs, reference_text, sensitivity_runs
 from .runs import orders, run_case, write_csv
-from .roundoff import roundoff_runs, roundoff_text
+from .roundoff import coarse_errors, needed_references, roundoff_runs, roundoff_text
 from .smoothness import smoothness_runs, smoothness_text
 from .text import _fmt_order, report_text
 from .window import WINDOW_TIMES, window_orders, window_runs, window_text
@@ -57,8 +57,12 @@ def main(argv=None):
                         "that moves each run (its section; about 8 min)")
     args = parser.parse_args(argv)
     if args.roundoff:
+        coarse = coarse_errors(FIGURES / "event_order.csv")     # before the runs: fail early
+        rows = roundoff_runs()
+        need = needed_references(rows, coarse)
+        plot_roundoff(rows, need, FIGURES / "event_order_roundoff.png")
         report.write_section(DOC, "Events: what double precision resolves",
-                             roundoff_text(roundoff_runs()))
+                             roundoff_text(rows, need, coarse))
         return
     if args.smoothness:
         report.write_section(DOC, "Events: where each run stops being smooth",
