@@ -101,7 +101,7 @@ from .roundoff import (FIT_RANGE, ORDER_AIM, REGULARISED_RUNS, ROUNDOFF_DTS, ROU
                        coarse_errors, needed_reference, needed_references, roundoff_runs,
                        roundoff_text, ulp_nudge)
 from .smoothness import (LINEAR_SPREAD, NUDGES, SMOOTH_DTS, SMOOTH_SCHEMES, SMOOTH_TIMES,
-                         micrometres, nudged, smooth_until, smoothness_runs, smoothness_text)
+                         nudged, smooth_until, smoothness_runs, smoothness_text)
 from .text import cost_ratios, report_text
 from .window import (WINDOW_REFERENCE, WINDOW_SCHEMES, WINDOW_TIMES, window_error, window_events,
                      window_orders, window_runs, window_text)
@@ -126,7 +126,7 @@ __all__ = [
     "window_events", "window_orders", "window_runs", "window_text", "WINDOW_STYLE",
     "plot_window", "write_csv", "LINEAR_SPREAD", "NUDGES", "SMOOTH_DTS", "SMOOTH_SCHEMES",
     "SMOOTH_TIMES", "nudged", "smooth_until", "smoothness_runs", "smoothness_text", "slope_cases", "positions_at",
-    "REGULARISED_RUNS", "ROUNDOFF_DTS", "ROUNDOFF_SCHEMES", "micrometres", "roundoff_runs",
+    "REGULARISED_RUNS", "ROUNDOFF_DTS", "ROUNDOFF_SCHEMES", "roundoff_runs",
     "roundoff_text", "ulp_nudge", "FIT_RANGE", "ORDER_AIM", "coarse_errors",
     "needed_reference", "needed_references", "plot_roundoff",
 ]

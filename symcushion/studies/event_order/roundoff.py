@@ -33,7 +33,7 @@ import numpy as np
 from .cases import slope_cases
 from .limits import ORACLE_RUNS, _trajectory, regularized_scene
 from .runs import positions_at
-from .smoothness import SMOOTH_TIMES, micrometres, nudged
+from .smoothness import SMOOTH_TIMES, nudged
 from .text import time_table_head
 
 #: The schemes whose floor is measured: the default step (whose run at 1e-6 s is

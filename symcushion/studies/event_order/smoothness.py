@@ -111,7 +111,7 @@ def smooth_until(nudges, moved, times=SMOOTH_TIMES, spread=LINEAR_SPREAD):
     return last
 
 
-def micrometres(x: float) -> str:
+def _micrometres(x: float) -> str:
     """``x`` (m) in µm to three significant digits, without an exponent."""
     um = 1e6 * x
     return f"{um:,.0f}" if um >= 1000 else f"{um:.3g}"
@@ -136,5 +136,5 @@ def smoothness_text(rows, times=SMOOTH_TIMES) -> str:
         until = smooth_until(r["nudges"], r["moved"], times)
         lines.append(f"| {r['scheme']} | {r['dt']:g} | "
                      + ("before " + f"{times[0]:g}" if until is None else f"{until:g}") + " | "
-                     + " | ".join(micrometres(x) for x in np.max(r["moved"], axis=0)) + " |")
+                     + " | ".join(_micrometres(x) for x in np.max(r["moved"], axis=0)) + " |")
     return "\n".join(lines)
