@@ -125,11 +125,16 @@ class Curve:
     tunable : bool
         Mark the parameters as design variables: a strut built with this curve
         exposes them in its ``p`` input instead of baking the numbers in.
+    elastic_stiffness : float, optional
+        k_e of the memory law (``symcushion.absorber``): the slope of the
+        elastic line between the loading and the unloading curve, N/m or
+        N·m/rad, > 0. Default: the loading curve's slope at zero deflection.
+        Unused by the printed law P(δ, sign δ′).
     """
 
     def __init__(self, *, unloading: "Curve | None" = None, smooth: bool = False,
                  kink_width: float = KINK_WIDTH, rate_width: float = RATE_WIDTH,
-                 tunable: bool = False):
+                 tunable: bool = False, elastic_stiffness: "float | None" = None):
         if unloading is not None and not isinstance(unloading, Curve):
             raise TypeError(
                 f"`unloading` must be a Curve (e.g. Linear(1e4)), got {unloading!r}.")
@@ -146,6 +151,28 @@ class Curve:
         self.unloading = unloading
         self.rate_width = _check_real("rate_width", rate_width, positive=True)
         self.tunable = boolean("tunable", tunable)
+        self.elastic_stiffness = (None if elastic_stiffness is None else
+                                  _check_real("elastic_stiffness", elastic_stiffness,
+                                              positive=True))
+
+    @property
+    def has_memory(self) -> bool:
+        """True if the element keeps a set under the memory law (``symcushion.absorber``):
+        it has an unloading curve, or it crushes."""
+        return self.unloading is not None or isinstance(self, Crushable)
+
+    def loading_zero(self, theta=None):
+        """The deflection where the loading curve's force is zero (m or rad).
+
+        The curve must increase through its zero (a restoring element); with
+        ``smooth=True`` the zero of the unrounded curve is returned, within
+        ``kink_width``/2 of the rounded one.
+        """
+        th_load, _ = self._split(theta)
+        return self._loading_zero(th_load)
+
+    def _loading_zero(self, theta):  # pragma: no cover - abstract
+        raise NotImplementedError
 
     # -- parameters -------------------------------------------------------
     _branch: _Branch
@@ -342,6 +369,10 @@ class Linear(Curve):
     def _loading_slope(self, x, theta):
         return theta[0] + 0 * x
 
+    def _loading_zero(self, theta):
+        # a flat curve (k = 0) has no zero: its preload puts it far to one side
+        return -theta[1] / ca.fmax(theta[0], 1e-300)
+
 
 class PiecewiseLinear(Curve):
     """Piecewise-linear resistance through knots (x_i, f_i).
@@ -393,6 +424,17 @@ class PiecewiseLinear(Curve):
             value = value + (slopes[i] - slopes[i - 1]) * _ramp_slope(x - xs[i], width)
         return value
 
+    def _loading_zero(self, theta):
+        # the last segment whose left knot is at or below zero holds the zero of an
+        # increasing curve (the end segments extended); a flat segment at zero: its knot
+        xs, slopes = self.knots, self._slopes(theta)
+        root = xs[0] - theta[0] / ca.if_else(slopes[0] > 0, slopes[0], 1.0)
+        for i in range(xs.size - 1):
+            step = ca.if_else(slopes[i] > 0, xs[i] - theta[i] / ca.if_else(
+                slopes[i] > 0, slopes[i], 1.0), xs[i])
+            root = ca.if_else(theta[i] <= 0, step, root)
+        return root
+
 
 class Crushable(Curve):
     """Crushable absorber (honeycomb): elastic rise to a crush plateau.
@@ -436,3 +478,6 @@ class Crushable(Curve):
         k, f_c, k_p = theta[0], theta[1], theta[2]
         x_c = -f_c / k
         return k - (k - k_p) * _ramp_slope(x_c - x, self._width())
+
+    def _loading_zero(self, theta):
+        return 0 * theta[0]                     # k x: zero at zero deflection

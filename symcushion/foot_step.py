@@ -57,7 +57,10 @@ class LegInput:
     """One leg in the step: its ``strut`` (:class:`~symcushion.strut.HingedStrut`),
     its Functions ``fns`` and curve parameters ``p_leg``, its unloaded foot
     ``rest`` (body frame), its state entries ``foot`` (``foot``, ``contact``,
-    ``force_body``) and its foot at the start ``rho0`` (body frame)."""
+    ``force_body``) and its foot at the start ``rho0`` (body frame); under
+    the memory law (``symcushion.absorber``) its axial set at the start
+    ``stroke_set`` (else None), with ``fns`` holding the strut's
+    ``memory_functions`` too."""
 
     strut: object
     fns: dict
@@ -65,6 +68,7 @@ class LegInput:
     rest: ca.DM
     foot: dict
     rho0: ca.SX
+    stroke_set: ca.SX | None = None
 
 
 class FeetStep:
@@ -112,16 +116,25 @@ class FeetStep:
         n_b = R_e.T @ normal_w
         u0 = rho_s - leg.rest
         v_rel = rate_of(l)
-        P0 = fns["strut_force"](rho_s, v_rel, p_leg)
-        Dp = fns["strut_stiffness"](rho_s, v_rel, p_leg)
+        if leg.stroke_set is None:
+            P0 = fns["strut_force"](rho_s, v_rel, p_leg)
+            Dp = fns["strut_stiffness"](rho_s, v_rel, p_leg)
+        else:
+            P0, Dp = self.memory_linearisation(leg, rho_s, l)
         out = contact_step_call(scene.method, P0, Dp, n_b, l, mu, u0, friction=friction)
-        if scene.tangent_plane == "end":
+        if scene.tangent_plane == "end" or leg.stroke_set is not None:
             # second pass: the tangent plane at the predicted end point, shifted along
-            # its normal so that a sticking foot keeps its world point r_s
-            _, _, r_pred = closest_obstacle(scene.obstacles, pos_e + R_e @ (rho_s + out["delta"]))
-            _, normal_w, _ = closest_obstacle(scene.obstacles, r_pred)
-            n_b = R_e.T @ normal_w
-            l = l + n_b * ca.dot(n_b, R_e.T @ (r_pred - r_s))
+            # its normal so that a sticking foot keeps its world point r_s; on the memory
+            # law, the force law linearised there too, in the regime the foot reaches
+            # (a slipping foot may leave the band where a sticking one would enter it)
+            if scene.tangent_plane == "end":
+                _, _, r_pred = closest_obstacle(scene.obstacles,
+                                                pos_e + R_e @ (rho_s + out["delta"]))
+                _, normal_w, _ = closest_obstacle(scene.obstacles, r_pred)
+                n_b = R_e.T @ normal_w
+                l = l + n_b * ca.dot(n_b, R_e.T @ (r_pred - r_s))
+            if leg.stroke_set is not None:
+                P0, Dp = self.memory_linearisation(leg, rho_s, out["delta"])
             out = contact_step_call(scene.method, P0, Dp, n_b, l, mu, u0,
                                     friction=friction)
         if scene.slip == "midpoint" and friction:
@@ -129,6 +142,23 @@ class FeetStep:
             # The start force turns with the body into the frame of the end.
             out = midpoint_slip_call(P0, Dp, n_b, l, mu, out, R_e.T @ R_s - ca.DM.eye(3))
         return out, l, n_b, normal_w, v_rel
+
+    @staticmethod
+    def memory_linearisation(leg: LegInput, rho_s, d):
+        """P₀ and D_p of (1.3) for a leg on the memory law: the force law linearised
+        about the foot ρ_s + d, in the regime it reaches there.
+
+        The law (A1) has kinks where the element starts or stops crushing; the
+        tangent at the start would carry the start's regime through the whole
+        step. The first pass linearises about the foot that sticks (d = l), the
+        second about the first pass's end foot: a sticking foot's end force is
+        then the law's to round-off whatever regime it enters, and a slipping
+        foot's differs by the curvature over the second correction only.
+        """
+        fns, s0, p_leg = leg.fns, leg.stroke_set, leg.p_leg
+        rho_d = rho_s + d
+        Dp = fns["strut_stiffness_memory"](rho_d, s0, p_leg, rho_d)
+        return fns["strut_force_memory"](rho_d, s0, p_leg) - Dp @ d, Dp
 
     def on_surface(self, rho, delta, pos_e, R_e):
         """The foot ρ + δ at the pose (pos_e, R_e) put on the obstacle: world, body."""
@@ -244,6 +274,14 @@ class FeetStep:
         foot_w = ca.if_else(stays, foot_proj, foot_w)
         rho1 = ca.if_else(stays, P.R1.T @ (foot_w - P.pos1), rho1)
         P1 = ca.if_else(stays, out["P"], ca.DM.zeros(3))
+        stroke_set = leg.stroke_set
+        if stroke_set is not None:
+            # the end force and set of the memory law at the end foot (A1)-(A2): the
+            # stroke grows only at the loading curve's force, whatever the foot did
+            P1 = ca.if_else(stays, leg.fns["strut_force_memory"](rho1, stroke_set, leg.p_leg),
+                            ca.DM.zeros(3))
+            stroke_set = leg.fns["strut_next_set"](rho1, stroke_set, leg.p_leg)
         return dict(in_contact=in_contact, active=active, stays=stays, rho_s=rho_s, r_s=r_s,
                     l=l, n_b=n_b, v_rel=v_rel, normal_w=normal_w, out=out, rho1=rho1,
-                    foot_w=foot_w, P1=P1, locked=ca.SX(0), split=split, l_whole=l_whole)
+                    foot_w=foot_w, P1=P1, locked=ca.SX(0), split=split, l_whole=l_whole,
+                    stroke_set=stroke_set)

@@ -63,12 +63,16 @@ class Field:
         What the entry is, with its frame.
     axes : tuple of str
         Component names (``("x", "y", "z")``); empty for a scalar.
+    default : float, optional
+        The value ``pack`` gives the field when it is not passed (None: the
+        field is required).
     """
 
     name: str
     unit: str
     meaning: str
     axes: tuple = ()
+    default: float | None = None
 
     def __post_init__(self):
         if self.unit not in UNITS:
@@ -93,7 +97,7 @@ BODY_STATE_FIELDS = (
     Field("attitude", "1", "unit quaternion (w, x, y, z), body → world", _WXYZ),
     Field("angular_velocity", "rad_s", "angular velocity, body axes", _XYZ),
 )
-#: Leg block of the state: 7 entries per leg.
+#: Leg block of the state: 8 entries per leg.
 LEG_STATE_FIELDS = (
     Field("foot", "m", "foot position, world frame (the stored contact point)", _XYZ),
     Field("contact", "1", "1 while the foot is in contact, else 0; with events = 'lock', "
@@ -101,6 +105,9 @@ LEG_STATE_FIELDS = (
           "(in contact: contact > 0.5)"),
     Field("force_body", "N", "force on the foot from the obstacle, body axes "
           "(the force of the last step, used by the next half kick)", _XYZ),
+    Field("stroke_set", "m", "set of the axial absorber under the memory law: the stroke "
+          "at which its elastic line carries no force (symcushion.absorber; 0 for an "
+          "element that keeps no set, and under the printed law)", default=0.0),
 )
 #: Body block of the per-step output: 3 entries.
 BODY_OUT_FIELDS = (
@@ -245,10 +252,12 @@ class VectorLayout:
         """Assemble a vector from named fields (every field required).
 
         Body fields are given as vectors of their size; leg fields as a
-        sequence over the legs (or a NumPy array (n_legs, size)). If any
+        sequence over the legs (or a NumPy array (n_legs, size)); a field with
+        a ``default`` may be left out. If any
         value is a CasADi symbol the result is ``ca.vertcat`` of the parts,
         else a NumPy float vector of shape (size,).
         """
+        fields = self._with_defaults(fields)
         expected = [f.name for f in self.body_fields] + [f.name for f in self.leg_fields]
         missing = [n for n in expected if n not in fields]
         extra = [n for n in fields if n not in expected]
@@ -272,6 +281,7 @@ class VectorLayout:
         Each field is given as (field size, n) (a scalar field as (n,));
         leg fields as a sequence over the legs of such arrays.
         """
+        fields = self._with_defaults(fields, n)
         expected = [f.name for f in self.body_fields] + [f.name for f in self.leg_fields]
         if sorted(fields) != sorted(expected):
             raise ValueError(f"`pack_columns` of the {self.name} needs exactly the fields "
@@ -287,6 +297,17 @@ class VectorLayout:
                                  f"{value.shape}.")
             rows.append(value.reshape(f.size, n))
         return np.vstack(rows) if rows else np.zeros((0, n))
+
+    def _with_defaults(self, fields: dict, n: int | None = None) -> dict:
+        """``fields`` with every left-out field that has a default filled in
+        (``n`` columns of it for ``pack_columns``)."""
+        out = dict(fields)
+        for f in self.body_fields + self.leg_fields:
+            if f.name in out or f.default is None:
+                continue
+            value = np.full((f.size,) if n is None else (f.size, n), f.default)
+            out[f.name] = value if f in self.body_fields else [value] * self.n_legs
+        return out
 
     def columns(self) -> list:
         """CSV column names in vector order."""

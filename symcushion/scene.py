@@ -57,6 +57,13 @@ SLIP_RULES = ("backward", "midpoint")
 #: whose foot sticks holds its stroke between the curves (SHAKE/RATTLE).
 EVENT_RULES = ("none", "branch", "lock")
 
+#: The absorbers' law between their loading and unloading curves:
+#: ``"sign"``, the printed P = P(δ, sign δ′) of (2.1) (the force jumps between
+#: the curves when the rate changes sign); ``"memory"``, the elastic band of
+#: ``symcushion.absorber`` (a set per absorber in the state, a continuous force,
+#: crushing only at the loading curve's force; docs/absorbers.md).
+HYSTERESIS_LAWS = ("sign", "memory")
+
 
 def _vec(name, value, size=3):
     return vector(name, value, (size,))
@@ -145,6 +152,9 @@ class Scene:
     events : {'none', 'branch', 'lock'}
         What the body step does at the absorbers' branch switches inside a
         step (:data:`EVENT_RULES`); ``'lock'`` needs ``mu > 0``.
+    hysteresis : {'sign', 'memory'}
+        The absorbers' law between their curves (:data:`HYSTERESIS_LAWS`);
+        ``'memory'`` needs ``events = 'none'`` (its force does not jump).
     """
 
     body: Body
@@ -159,6 +169,7 @@ class Scene:
     tangent_plane: str = "end"
     slip: str = "backward"
     events: str = "none"
+    hysteresis: str = "sign"
 
     def __post_init__(self):
         if not isinstance(self.body, Body):
@@ -181,11 +192,28 @@ class Scene:
             raise ValueError(f"`slip` = {self.slip!r} corrects the implicit contact step's slip; "
                              f"`method` is {self.method!r}. Set method = 'implicit' or "
                              "slip = 'backward'.")
+        self.hysteresis = choice("hysteresis", self.hysteresis, HYSTERESIS_LAWS)
+        if self.hysteresis == "memory":
+            self._check_memory()
         self.dt = _positive("dt", self.dt, "s")
         self.duration = _positive("duration", self.duration, "s")
         self.gravity = _vec("gravity", self.gravity)
         if not isinstance(self.name, str):
             raise TypeError(f"`name` must be a string, got {show(self.name)}.")
+
+    def _check_memory(self):
+        """The memory law's conditions: no event rule, no hinge spring with memory."""
+        if self.events != "none":
+            raise ValueError(f"`events` = {self.events!r} locates the jumps of the printed law; "
+                             "`hysteresis` = 'memory' has a continuous force and needs none. "
+                             "Set events = 'none' (or hysteresis = 'sign').")
+        for j, leg in enumerate(self.legs):
+            for el in leg.elements:
+                if el.name != "S" and el.curve.unloading is not None:
+                    raise ValueError(
+                        f"leg {j}: `{el.name}` has an unloading curve; `hysteresis` = 'memory' "
+                        "keeps a set for the axial absorber only. Remove the hinge spring's "
+                        "unloading curve or set hysteresis = 'sign'.")
 
     @property
     def steps(self) -> int:
@@ -239,7 +267,8 @@ _Table = Table
 _CURVES = ("linear", "piecewise", "crushable")
 #: Every key of an element table, for "did you mean" on a misspelt one.
 _CURVE_KEYS = ("type", "smooth", "tunable", "unloading", "stiffness", "preload", "x", "f",
-               "crush_force", "plateau_slope", "kink_width", "rate_width")
+               "crush_force", "plateau_slope", "kink_width", "rate_width",
+               "elastic_stiffness")
 
 
 def _build(t: Table, build, *args, **kwargs):
@@ -269,6 +298,8 @@ def _curve(table, allow_unloading=True) -> Curve:
             table.fail(f"`{table.path}.{width}` acts only on a smooth curve; add "
                        f"`smooth = true` to `{table.path}` or remove `{width}`.")
         options[width] = table.get(width, default, positive=True)
+    if table.has("elastic_stiffness"):
+        options["elastic_stiffness"] = table.get("elastic_stiffness", positive=True)
     if allow_unloading and table.has("unloading"):
         options["unloading"] = _curve(table.get("unloading", kind="table"), allow_unloading=False)
     if kind == "linear":
@@ -388,7 +419,7 @@ def _terrain(t: Table):
 
 
 _SCENE_KEYS = ("name", "mu", "method", "dt", "duration", "gravity", "tangent_plane", "slip",
-               "events")
+               "events", "hysteresis")
 _BODY_KEYS = ("mass", "inertia", "position", "attitude", "velocity", "angular_velocity")
 
 
@@ -444,7 +475,9 @@ def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
                         tangent_plane=s.get("tangent_plane", "end", kind="string",
                                             choices=TANGENT_PLANES),
                         slip=s.get("slip", "backward", kind="string", choices=SLIP_RULES),
-                        events=s.get("events", "none", kind="string", choices=EVENT_RULES))
+                        events=s.get("events", "none", kind="string", choices=EVENT_RULES),
+                        hysteresis=s.get("hysteresis", "sign", kind="string",
+                                         choices=HYSTERESIS_LAWS))
         s.finish(known=_SCENE_KEYS)
     top.finish(known=("scene", "body", "legs", "leg", "obstacle"))
     problems.raise_if_any()

@@ -39,6 +39,7 @@ from typing import Optional
 import casadi as ca
 import numpy as np
 
+from . import absorber
 from .characteristics import Curve, Linear
 from .validation import direction, real, vector
 
@@ -171,6 +172,7 @@ class HingedStrut:
                 offset += curve.n_params
         self.elements = tuple(elements)
         self._functions = None
+        self._memory_functions = None
 
     # -- parameters -----------------------------------------------------------
     @property
@@ -274,6 +276,80 @@ class HingedStrut:
                       + (dMg * d_gamma * e_gamma + Mg * de_gamma) / L)
             columns.append(column)
         return ca.horzcat(*columns)
+
+    # -- the memory law (symcushion.absorber) ----------------------------------
+    @property
+    def axial_memory(self) -> bool:
+        """True if the axial element keeps a set under the memory law."""
+        return any(el.name == "S" and el.curve.has_memory for el in self.elements)
+
+    def _axial(self) -> _Element:
+        return next(el for el in self.elements if el.name == "S")
+
+    def memory_force_expr(self, r, s, p, r_regime=None):
+        """P(r) of (2.1) with the axial element on the memory law (A1) at set ``s``.
+
+        The bending elements take their loading curves (an elastic hinge).
+        ``r_regime`` (default ``r``): the foot position that picks the axial
+        element's regime (``absorber.memory_force``).
+        """
+        g = self.geometry(r)
+        x = self._deflections(g)
+        forces = dict(S=0.0, M_beta=0.0, M_gamma=0.0)
+        for el in self.elements:
+            theta = self._theta(el, p)
+            if el.name == "S" and el.curve.has_memory:
+                x_regime = None if r_regime is None else self.geometry(r_regime)["delta_S"]
+                forces["S"] = absorber.memory_force(el.curve, x["S"], s, theta, x_regime)
+            else:
+                forces[el.name] = el.curve.force(x[el.name], 0.0, theta)
+        forces["M_gamma"] = -self.sigma * forces["M_gamma"]            # docs/paper-notes.md §2
+        return (forces["S"] * g["e_S"] + forces["M_beta"] / g["L"] * g["e_beta"]
+                + forces["M_gamma"] / g["L"] * g["e_gamma"])           # (2.1)
+
+    def memory_functions(self) -> dict[str, ca.Function]:
+        """The named Functions of the memory law (A1)-(A2) for a leg whose axial
+        element keeps a set (``axial_memory``); built once, cached.
+
+        ``strut_force_memory(r, stroke_set, p) -> P``,
+        ``strut_stiffness_memory(r, stroke_set, p, r_regime) -> Dp`` (∂P/∂r in
+        the regime that ``r_regime`` picks), ``strut_next_set(r, stroke_set, p)
+        -> next_set`` (A2) and ``strut_free_foot(stroke_set, p) -> r`` (the
+        unloaded foot, body frame, at the free stroke x₀(s)).
+        """
+        if not self.axial_memory:
+            raise ValueError("this strut's axial element keeps no set (a crushable element, "
+                             "or one with an unloading curve, does); use `functions()`.")
+        if self._memory_functions is None:
+            r, r_regime = ca.SX.sym("r", 3), ca.SX.sym("r_regime", 3)
+            s = ca.SX.sym("stroke_set")
+            p = ca.SX.sym("p", len(self.param_names))
+            el = self._axial()
+            theta = self._theta(el, p)
+            P = self.memory_force_expr(r, s, p)
+            Dp = ca.jacobian(self.memory_force_expr(r, s, p, r_regime), r)
+            s_next = absorber.next_set(el.curve, self.geometry(r)["delta_S"], s, theta)
+            free = ca.DM(self.hinge) + (self.length + absorber.free_deflection(
+                el.curve, s, theta)) * ca.DM(self.e0)
+            self._memory_functions = {
+                "strut_force_memory": ca.Function("strut_force_memory", [r, s, p], [P],
+                                                  ["r", "stroke_set", "p"], ["P"]),
+                "strut_stiffness_memory": ca.Function(
+                    "strut_stiffness_memory", [r, s, p, r_regime], [Dp],
+                    ["r", "stroke_set", "p", "r_regime"], ["Dp"]),
+                "strut_next_set": ca.Function("strut_next_set", [r, s, p], [s_next],
+                                              ["r", "stroke_set", "p"], ["next_set"]),
+                "strut_free_foot": ca.Function("strut_free_foot", [s, p], [free],
+                                               ["stroke_set", "p"], ["r"]),
+            }
+        return self._memory_functions
+
+    def loading_set(self, r, p=None) -> float:
+        """The axial set of a foot at ``r`` reached along the loading curve (A2)."""
+        el = self._axial()
+        delta_S = float(ca.evalf(self.geometry(ca.DM(self._check_r(r)))["delta_S"]))
+        theta = self._theta(el, self._p(p))
+        return float(ca.evalf(absorber.set_on_loading(el.curve, delta_S, theta)))
 
     # -- Functions --------------------------------------------------------------
     def functions(self) -> dict[str, ca.Function]:

@@ -222,8 +222,16 @@ def build_model(scene: Scene) -> StepModel:
     body = xl.unpack(X)
     pos, vel, quat, omega = (body[k] for k in ("position", "velocity", "attitude",
                                                 "angular_velocity"))
-    feet = [{f: body[f][j] for f in ("foot", "contact", "force_body")} for j in range(n_legs)]
-    rest = [ca.DM(leg.rest_foot) for leg in legs]
+    feet = [{f: body[f][j] for f in ("foot", "contact", "force_body", "stroke_set")}
+            for j in range(n_legs)]
+    # the legs on the memory law (symcushion.absorber): their unloaded foot is where the
+    # axial element's set leaves it
+    memory = [scene.hysteresis == "memory" and leg.axial_memory for leg in legs]
+    fns_of = [dict(leg.functions(), **(leg.memory_functions() if mem else {}))
+              for leg, mem in zip(legs, memory)]
+    p_of = [p[o[0]:o[1]] for o in offsets]
+    rest = [fns_of[j]["strut_free_foot"](feet[j]["stroke_set"], p_of[j]) if memory[j]
+            else ca.DM(leg.rest_foot) for j, leg in enumerate(legs)]
 
     R = quat_to_rot(quat)
 
@@ -242,8 +250,6 @@ def build_model(scene: Scene) -> StepModel:
         torque = torque + ca.cross(rho, foot["force_body"])
     lockable = [j for j, leg in enumerate(legs)
                 if scene.events == "lock" and locates_switch(leg)]
-    fns_of = [leg.functions() for leg in legs]
-    p_of = [p[o[0]:o[1]] for o in offsets]
     locked0 = {j: ca.fabs(feet[j]["contact"] - LOCKED) < 0.5 for j in lockable}
 
     def kick_drift(force, torque):
@@ -281,7 +287,8 @@ def build_model(scene: Scene) -> StepModel:
                                           vel_h=vel_h, omega_h=omega_h, pos1=pos1, R1=R1),
                          mu, [X, p, h])
     leg_in = [LegInput(strut=legs[j], fns=fns_of[j], p_leg=p_of[j], rest=rest[j], foot=feet[j],
-                       rho0=rho0[j]) for j in range(n_legs)]
+                       rho0=rho0[j], stroke_set=feet[j]["stroke_set"] if memory[j] else None)
+              for j in range(n_legs)]
 
     res, release_loading = [], {}
     stored_loading = {j: feet[j]["contact"] < 2.5 for j in lockable}
@@ -486,7 +493,8 @@ def build_model(scene: Scene) -> StepModel:
             contact = ca.if_else(lk, LOCKED, ca.if_else(stays, ca.if_else(loading1, 1.0,
                                                                           UNLOADING), 0.0))
             b1_active = ca.logic_and(b1_active, ca.logic_not(ca.logic_or(st, locked0[j])))
-        new_feet.append(dict(foot=foot_w, contact=contact, force_body=P1))
+        new_feet.append(dict(foot=foot_w, contact=contact, force_body=P1,
+                             stroke_set=r["stroke_set"] if memory[j] else feet[j]["stroke_set"]))
         if scene.events in ("branch", "lock") and locates_switch(leg):
             # the kick at the located loading/unloading switch (symcushion.branch_switch)
             dF, dT, _ = branch_switch_kick(
@@ -513,7 +521,7 @@ def build_model(scene: Scene) -> StepModel:
 
     x_next = xl.pack(position=pos1, velocity=vel1, attitude=quat1, angular_velocity=omega1,
                      **{f: [foot[f] for foot in new_feet] for f in ("foot", "contact",
-                                                                    "force_body")})
+                                                                    "force_body", "stroke_set")})
     y = yl.pack(acceleration=acc1, **{f.name: [o[f.name] for o in outputs]
                                        for f in yl.leg_fields})
     step = ca.Function("touchdown_step", [X, p, h], [x_next, y], ["x", "p", "dt"],

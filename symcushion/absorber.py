@@ -1,0 +1,104 @@
+"""Absorbers with memory: the elastic band between an element's curves.
+
+The printed law of Khvostov (1976), P = P(δ, sign δ′) of (2.1), puts an
+element on its loading curve while its deflection grows and on its
+unloading curve while it shrinks, so the force jumps between the curves
+whenever the rate changes sign. A real absorber does not jump: a crushed
+honeycomb unloads elastically from where it stopped crushing, and reloads
+elastically up to its crush force before it crushes further. This module
+owns that law (``Scene.hysteresis = "memory"``, docs/absorbers.md):
+
+    f(x, s) = clip(k_e (x − s), lo(x), hi(x))                        (A1)
+    s⁺      = x − f(x, s)/k_e                                         (A2)
+
+x the element's deflection (m or rad), s its *set* — the deflection at
+which its elastic line carries no force, the one internal state the
+element remembers — k_e the slope of the elastic line
+(``Curve.elastic_stiffness``, by default the loading curve's slope at zero),
+and [lo, hi] the band between the loading curve f_L and the unloading curve
+f_U: lo = min(f_L, f_U), hi = max(f_L, f_U). A crushable element without an
+unloading curve has lo = f_L and no upper bound: it crushes in compression
+only and unloads along its elastic line, keeping its crushed stroke. The set
+changes only where the force is on a bound (A2), so a stroke grows only at
+the loading curve's force; the force is continuous in x and s; as k_e → ∞
+the band's elastic line turns vertical and (A1) tends to the printed law
+with the stroke held between the curves.
+
+A free element (a foot in the air) rests where its force is zero,
+x₀(s) = clip(s, min(z_L, z_U), max(z_L, z_U)), z the zeros of the curves:
+the elastic line's zero s while the band holds zero force there, else the
+zero of the bound that pushes it out (a spring-back curve).
+
+It must not know about struts, legs or contact: the strut
+(``symcushion.strut``) applies (A1) to its axial deflection, and the step
+(``symcushion.touchdown``) carries s in the state.
+"""
+from __future__ import annotations
+
+import casadi as ca
+
+from .characteristics import Curve
+
+__all__ = ["elastic_stiffness", "band", "memory_force", "next_set", "free_deflection",
+           "set_on_loading"]
+
+
+def elastic_stiffness(curve: Curve, theta=None):
+    """k_e of (A1): the curve's ``elastic_stiffness``, else its loading slope at zero."""
+    if curve.elastic_stiffness is not None:
+        return curve.elastic_stiffness
+    th_load, _ = curve._split(theta)
+    return curve._loading_slope(0.0, th_load)
+
+
+def band(curve: Curve, x, theta=None):
+    """(lo, hi) of (A1) at deflection ``x``; hi is None where there is no upper bound."""
+    th_load, th_unload = curve._split(theta)
+    f_load = curve._loading(x, th_load)
+    if curve.unloading is None:
+        return f_load, None
+    f_unload = curve.unloading._loading(x, th_unload)
+    return ca.fmin(f_load, f_unload), ca.fmax(f_load, f_unload)
+
+
+def memory_force(curve: Curve, x, s, theta=None, x_regime=None):
+    """f(x, s) of (A1), N or N·m.
+
+    ``x_regime`` (default ``x``): the deflection whose place in the band picks
+    the regime (on the lower bound, elastic, on the upper bound); the force is
+    then that regime's expression at ``x``, so that its derivative in ``x`` is
+    the tangent stiffness of the regime the step is heading for.
+    """
+    k_e = elastic_stiffness(curve, theta)
+    lo, hi = band(curve, x, theta)
+    trial = k_e * (x - s)                                            # (A1)
+    if x_regime is None:
+        f = ca.fmax(trial, lo)
+        return f if hi is None else ca.fmin(f, hi)
+    lo_r, hi_r = band(curve, x_regime, theta)
+    trial_r = k_e * (x_regime - s)
+    f = ca.if_else(trial_r < lo_r, lo, trial)
+    if hi is not None:
+        f = ca.if_else(trial_r > hi_r, hi, f)
+    return f
+
+
+def next_set(curve: Curve, x, s, theta=None):
+    """s⁺ of (A2): the set after the element reached ``x`` from set ``s``."""
+    return x - memory_force(curve, x, s, theta) / elastic_stiffness(curve, theta)   # (A2)
+
+
+def free_deflection(curve: Curve, s, theta=None):
+    """x₀(s): where a free element with set ``s`` carries no force."""
+    z_load = curve.loading_zero(theta)
+    if curve.unloading is None:
+        return ca.fmin(s, z_load)
+    _, th_unload = curve._split(theta)
+    z_unload = curve.unloading._loading_zero(th_unload)
+    return ca.fmin(ca.fmax(s, ca.fmin(z_load, z_unload)), ca.fmax(z_load, z_unload))
+
+
+def set_on_loading(curve: Curve, x, theta=None):
+    """The set of an element that reached ``x`` along its loading curve."""
+    th_load, _ = curve._split(theta)
+    return x - curve._loading(x, th_load) / elastic_stiffness(curve, theta)
