@@ -29,6 +29,22 @@ x₀(s) = clip(s, min(z_L, z_U), max(z_L, z_U)), z the zeros of the curves:
 the elastic line's zero s while the band holds zero force there, else the
 zero of the bound that pushes it out (a spring-back curve).
 
+Dampers in parallel with the element add c·ẋ + c₂·ẋ|ẋ| (viscous and
+orifice, ``Curve.damping`` and ``Curve.orifice``). A massless foot's damper
+force belongs to the end of the step; its rate there is taken by the
+two-step backward difference (BDF2)
+
+    ẋ₁ = (3/2)(x₁ − x₀)/Δt − (1/2) c₀,                              (A3)
+
+c₀ the mean rate of the previous step ((x₀ − x₋₁)/Δt, kept in the state):
+second order, and L-stable, so a stiff damper behind a massless foot
+neither rings nor limits the step. (A3) is affine in x₁, so the contact
+step sees the damper as the stiffness (3/2)c/Δt along the strut. A free
+damped element relaxes towards x₀(s) instead of jumping there: its end
+deflection solves
+
+    f(x₁, s) + c ẋ₁ + c₂ ẋ₁|ẋ₁| = 0,   ẋ₁ of (A3).                    (A4)
+
 It must not know about struts, legs or contact: the strut
 (``symcushion.strut``) applies (A1) to its axial deflection, and the step
 (``symcushion.touchdown``) carries s in the state.
@@ -40,7 +56,14 @@ import casadi as ca
 from .characteristics import Curve
 
 __all__ = ["elastic_stiffness", "band", "memory_force", "next_set", "free_deflection",
-           "set_on_loading"]
+           "set_on_loading", "damper_force", "end_rate", "relaxed_deflection",
+           "RELAX_NEWTON_STEPS"]
+
+#: Newton steps of a free damped element's relaxation over a step (A4). Its
+#: residual is piecewise linear and increasing (viscous damper) or smooth
+#: (orifice): each step lands on the solution of the segment it starts on, so
+#: four cross three kinks of the band; a free foot's error is no contact force.
+RELAX_NEWTON_STEPS = 4
 
 
 def elastic_stiffness(curve: Curve, theta=None):
@@ -102,3 +125,31 @@ def set_on_loading(curve: Curve, x, theta=None):
     """The set of an element that reached ``x`` along its loading curve."""
     th_load, _ = curve._split(theta)
     return x - curve._loading(x, th_load) / elastic_stiffness(curve, theta)
+
+
+def damper_force(curve: Curve, rate):
+    """c·ẋ + c₂·ẋ|ẋ| of the dampers in parallel with the element (N or N·m)."""
+    return curve.damping * rate + curve.orifice * rate * ca.fabs(rate)
+
+
+def end_rate(x1, x0, mean_rate0, dt):
+    """ẋ at the end of a step by (A3): ``x1``, ``x0`` the deflections at its end and
+    start, ``mean_rate0`` the previous step's mean rate, ``dt`` the step."""
+    return 1.5 * (x1 - x0) / dt - 0.5 * mean_rate0                     # (A3)
+
+
+def relaxed_deflection(curve: Curve, x0, s, mean_rate0, dt, theta=None):
+    """x₁ of a free element over a step: x₀(s) at once without a damper, else (A4)
+    by Newton's method from the start deflection ``x0``."""
+    if not curve.has_damper:
+        return free_deflection(curve, s, theta)
+    x = ca.SX.sym("x")
+    th_load, _ = curve._split(theta)
+    elastic = memory_force(curve, x, s, theta) if curve.has_memory else curve._loading(x, th_load)
+    residual = elastic + damper_force(
+        curve, end_rate(x, x0, mean_rate0, dt))                        # (A4)
+    newton = x - residual / ca.jacobian(residual, x)
+    x1 = x0
+    for _ in range(RELAX_NEWTON_STEPS):
+        x1 = ca.substitute(newton, x, x1)
+    return x1

@@ -130,11 +130,18 @@ class Curve:
         elastic line between the loading and the unloading curve, N/m or
         N·m/rad, > 0. Default: the loading curve's slope at zero deflection.
         Unused by the printed law P(δ, sign δ′).
+    damping : float
+        c of a viscous damper in parallel with the element, force c·ẋ
+        (N·s/m or N·m·s/rad), ≥ 0; memory law only (``symcushion.absorber``).
+    orifice : float
+        c₂ of an orifice damper in parallel, force c₂·ẋ|ẋ| (N·s²/m²), ≥ 0;
+        memory law only.
     """
 
     def __init__(self, *, unloading: "Curve | None" = None, smooth: bool = False,
                  kink_width: float = KINK_WIDTH, rate_width: float = RATE_WIDTH,
-                 tunable: bool = False, elastic_stiffness: "float | None" = None):
+                 tunable: bool = False, elastic_stiffness: "float | None" = None,
+                 damping: float = 0.0, orifice: float = 0.0):
         if unloading is not None and not isinstance(unloading, Curve):
             raise TypeError(
                 f"`unloading` must be a Curve (e.g. Linear(1e4)), got {unloading!r}.")
@@ -154,6 +161,13 @@ class Curve:
         self.elastic_stiffness = (None if elastic_stiffness is None else
                                   _check_real("elastic_stiffness", elastic_stiffness,
                                               positive=True))
+        self.damping = _check_real("damping", damping, nonnegative=True)
+        self.orifice = _check_real("orifice", orifice, nonnegative=True)
+
+    @property
+    def has_damper(self) -> bool:
+        """True if a damper acts in parallel with the element (memory law only)."""
+        return self.damping > 0 or self.orifice > 0
 
     @property
     def has_memory(self) -> bool:

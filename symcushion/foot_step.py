@@ -59,8 +59,11 @@ class LegInput:
     ``rest`` (body frame), its state entries ``foot`` (``foot``, ``contact``,
     ``force_body``) and its foot at the start ``rho0`` (body frame); under
     the memory law (``symcushion.absorber``) its axial set at the start
-    ``stroke_set`` (else None), with ``fns`` holding the strut's
-    ``memory_functions`` too."""
+    ``stroke_set`` and the mean stroke rate of the previous step
+    ``stroke_chord`` (else None), with ``fns`` holding the strut's
+    ``memory_functions`` too; then ``rest`` is the free foot at the end of the
+    step and ``rest_start`` the free foot at its start (a damped foot relaxes
+    over the step)."""
 
     strut: object
     fns: dict
@@ -69,6 +72,8 @@ class LegInput:
     foot: dict
     rho0: ca.SX
     stroke_set: ca.SX | None = None
+    stroke_chord: ca.SX | None = None
+    rest_start: ca.SX | None = None
 
 
 class FeetStep:
@@ -120,7 +125,8 @@ class FeetStep:
             P0 = fns["strut_force"](rho_s, v_rel, p_leg)
             Dp = fns["strut_stiffness"](rho_s, v_rel, p_leg)
         else:
-            P0, Dp = self.memory_linearisation(leg, rho_s, l)
+            rate = self.damper_rate(leg, rho_s)
+            P0, Dp = self.memory_linearisation(leg, rho_s, l, rate)
         out = contact_step_call(scene.method, P0, Dp, n_b, l, mu, u0, friction=friction)
         if scene.tangent_plane == "end" or leg.stroke_set is not None:
             # second pass: the tangent plane at the predicted end point, shifted along
@@ -134,7 +140,7 @@ class FeetStep:
                 n_b = R_e.T @ normal_w
                 l = l + n_b * ca.dot(n_b, R_e.T @ (r_pred - r_s))
             if leg.stroke_set is not None:
-                P0, Dp = self.memory_linearisation(leg, rho_s, out["delta"])
+                P0, Dp = self.memory_linearisation(leg, rho_s, out["delta"], rate)
             out = contact_step_call(scene.method, P0, Dp, n_b, l, mu, u0,
                                     friction=friction)
         if scene.slip == "midpoint" and friction:
@@ -143,8 +149,15 @@ class FeetStep:
             out = midpoint_slip_call(P0, Dp, n_b, l, mu, out, R_e.T @ R_s - ca.DM.eye(3))
         return out, l, n_b, normal_w, v_rel
 
+    def damper_rate(self, leg: LegInput, rho_s):
+        """(a, b) of the dampers' end rate a·δ_S + b by (A3), from the foot ρ_s at
+        the start of the step and the previous step's mean rate."""
+        x0 = leg.fns["strut_geometry"](rho_s)[1]                       # δ_S at the start
+        h = self.poses.h
+        return 1.5 / h, -1.5 * x0 / h - 0.5 * leg.stroke_chord          # (A3)
+
     @staticmethod
-    def memory_linearisation(leg: LegInput, rho_s, d):
+    def memory_linearisation(leg: LegInput, rho_s, d, rate):
         """P₀ and D_p of (1.3) for a leg on the memory law: the force law linearised
         about the foot ρ_s + d, in the regime it reaches there.
 
@@ -157,8 +170,8 @@ class FeetStep:
         """
         fns, s0, p_leg = leg.fns, leg.stroke_set, leg.p_leg
         rho_d = rho_s + d
-        Dp = fns["strut_stiffness_memory"](rho_d, s0, p_leg, rho_d)
-        return fns["strut_force_memory"](rho_d, s0, p_leg) - Dp @ d, Dp
+        Dp = fns["strut_stiffness_memory"](rho_d, s0, p_leg, *rate, rho_d)
+        return fns["strut_force_memory"](rho_d, s0, p_leg, *rate) - Dp @ d, Dp
 
     def on_surface(self, rho, delta, pos_e, R_e):
         """The foot ρ + δ at the pose (pos_e, R_e) put on the obstacle: world, body."""
@@ -214,7 +227,7 @@ class FeetStep:
         h, foot = P.h, leg.foot
         in_contact = foot["contact"] > 0.5
         # free foot: where does its unloaded position cross the surface?
-        free0 = P.pos + P.R @ leg.rest
+        free0 = P.pos + P.R @ (leg.rest if leg.rest_start is None else leg.rest_start)
         free1 = P.pos1 + P.R1 @ leg.rest
         d0, _, _ = closest_obstacle(scene.obstacles, free0)
         d1, _, _ = closest_obstacle(scene.obstacles, free1)
@@ -274,14 +287,16 @@ class FeetStep:
         foot_w = ca.if_else(stays, foot_proj, foot_w)
         rho1 = ca.if_else(stays, P.R1.T @ (foot_w - P.pos1), rho1)
         P1 = ca.if_else(stays, out["P"], ca.DM.zeros(3))
-        stroke_set = leg.stroke_set
+        stroke_set, chord = leg.stroke_set, leg.stroke_chord
         if stroke_set is not None:
-            # the end force and set of the memory law at the end foot (A1)-(A2): the
+            # the end force and set of the memory law at the end foot (A1)-(A3): the
             # stroke grows only at the loading curve's force, whatever the foot did
-            P1 = ca.if_else(stays, leg.fns["strut_force_memory"](rho1, stroke_set, leg.p_leg),
+            fns, rate = leg.fns, self.damper_rate(leg, rho_s)
+            P1 = ca.if_else(stays, fns["strut_force_memory"](rho1, stroke_set, leg.p_leg, *rate),
                             ca.DM.zeros(3))
-            stroke_set = leg.fns["strut_next_set"](rho1, stroke_set, leg.p_leg)
+            stroke_set = fns["strut_next_set"](rho1, stroke_set, leg.p_leg)
+            chord = (fns["strut_geometry"](rho1)[1] - fns["strut_geometry"](rho_s)[1]) / h
         return dict(in_contact=in_contact, active=active, stays=stays, rho_s=rho_s, r_s=r_s,
                     l=l, n_b=n_b, v_rel=v_rel, normal_w=normal_w, out=out, rho1=rho1,
                     foot_w=foot_w, P1=P1, locked=ca.SX(0), split=split, l_whole=l_whole,
-                    stroke_set=stroke_set)
+                    stroke_set=stroke_set, stroke_chord=chord)

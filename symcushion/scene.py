@@ -193,6 +193,7 @@ class Scene:
                              f"`method` is {self.method!r}. Set method = 'implicit' or "
                              "slip = 'backward'.")
         self.hysteresis = choice("hysteresis", self.hysteresis, HYSTERESIS_LAWS)
+        self._check_dampers()
         if self.hysteresis == "memory":
             self._check_memory()
         self.dt = _positive("dt", self.dt, "s")
@@ -200,6 +201,20 @@ class Scene:
         self.gravity = _vec("gravity", self.gravity)
         if not isinstance(self.name, str):
             raise TypeError(f"`name` must be a string, got {show(self.name)}.")
+
+    def _check_dampers(self):
+        """Dampers act on the axial element, under the memory law."""
+        for j, leg in enumerate(self.legs):
+            for el in leg.elements:
+                if not el.curve.has_damper:
+                    continue
+                if el.name != "S":
+                    raise ValueError(f"leg {j}: `{el.name}` has a damper; dampers act in "
+                                     "parallel with the axial element `S` only. Move it there "
+                                     "or remove it.")
+                if self.hysteresis != "memory":
+                    raise ValueError(f"leg {j}: `S` has a damper, which the printed law "
+                                     "P(δ, sign δ′) does not have; set hysteresis = 'memory'.")
 
     def _check_memory(self):
         """The memory law's conditions: no event rule, no hinge spring with memory."""
@@ -268,7 +283,7 @@ _CURVES = ("linear", "piecewise", "crushable")
 #: Every key of an element table, for "did you mean" on a misspelt one.
 _CURVE_KEYS = ("type", "smooth", "tunable", "unloading", "stiffness", "preload", "x", "f",
                "crush_force", "plateau_slope", "kink_width", "rate_width",
-               "elastic_stiffness")
+               "elastic_stiffness", "damping", "orifice")
 
 
 def _build(t: Table, build, *args, **kwargs):
@@ -300,6 +315,9 @@ def _curve(table, allow_unloading=True) -> Curve:
         options[width] = table.get(width, default, positive=True)
     if table.has("elastic_stiffness"):
         options["elastic_stiffness"] = table.get("elastic_stiffness", positive=True)
+    for damper in ("damping", "orifice"):
+        if table.has(damper):
+            options[damper] = table.get(damper, nonnegative=True)
     if allow_unloading and table.has("unloading"):
         options["unloading"] = _curve(table.get("unloading", kind="table"), allow_unloading=False)
     if kind == "linear":

@@ -283,15 +283,22 @@ class HingedStrut:
         """True if the axial element keeps a set under the memory law."""
         return any(el.name == "S" and el.curve.has_memory for el in self.elements)
 
+    @property
+    def axial_state(self) -> bool:
+        """True if the axial element needs the memory law's state: a set or a damper."""
+        return any(el.name == "S" and (el.curve.has_memory or el.curve.has_damper)
+                   for el in self.elements)
+
     def _axial(self) -> _Element:
         return next(el for el in self.elements if el.name == "S")
 
-    def memory_force_expr(self, r, s, p, r_regime=None):
+    def memory_force_expr(self, r, s, p, r_regime=None, rate=(0.0, 0.0)):
         """P(r) of (2.1) with the axial element on the memory law (A1) at set ``s``.
 
         The bending elements take their loading curves (an elastic hinge).
         ``r_regime`` (default ``r``): the foot position that picks the axial
-        element's regime (``absorber.memory_force``).
+        element's regime (``absorber.memory_force``). ``rate`` = (a, b): the
+        stroke rate of the axial dampers is a·δ_S + b, the affine form of (A3).
         """
         g = self.geometry(r)
         x = self._deflections(g)
@@ -303,6 +310,9 @@ class HingedStrut:
                 forces["S"] = absorber.memory_force(el.curve, x["S"], s, theta, x_regime)
             else:
                 forces[el.name] = el.curve.force(x[el.name], 0.0, theta)
+            if el.name == "S" and el.curve.has_damper:
+                forces["S"] = forces["S"] + absorber.damper_force(
+                    el.curve, rate[0] * x["S"] + rate[1])
         forces["M_gamma"] = -self.sigma * forces["M_gamma"]            # docs/paper-notes.md §2
         return (forces["S"] * g["e_S"] + forces["M_beta"] / g["L"] * g["e_beta"]
                 + forces["M_gamma"] / g["L"] * g["e_gamma"])           # (2.1)
@@ -311,36 +321,48 @@ class HingedStrut:
         """The named Functions of the memory law (A1)-(A2) for a leg whose axial
         element keeps a set (``axial_memory``); built once, cached.
 
-        ``strut_force_memory(r, stroke_set, p) -> P``,
-        ``strut_stiffness_memory(r, stroke_set, p, r_regime) -> Dp`` (∂P/∂r in
-        the regime that ``r_regime`` picks), ``strut_next_set(r, stroke_set, p)
-        -> next_set`` (A2) and ``strut_free_foot(stroke_set, p) -> r`` (the
-        unloaded foot, body frame, at the free stroke x₀(s)).
+        ``strut_force_memory(r, stroke_set, p, rate_gain, rate_offset) -> P``
+        (the dampers' stroke rate a·δ_S + b, (A3)),
+        ``strut_stiffness_memory(..., r_regime) -> Dp`` (∂P/∂r in the regime
+        that ``r_regime`` picks, the dampers' a·c included),
+        ``strut_next_set(r, stroke_set, p) -> next_set`` (A2) and
+        ``strut_free_foot(stroke_set, p, stroke_start, mean_rate, dt) -> r``
+        (a free foot at the end of a step, body frame, along e₀: at the free
+        stroke x₀(s), or relaxing towards it behind a damper, (A4)).
         """
-        if not self.axial_memory:
-            raise ValueError("this strut's axial element keeps no set (a crushable element, "
-                             "or one with an unloading curve, does); use `functions()`.")
+        if not self.axial_state:
+            raise ValueError("this strut's axial element keeps no state (a crushable element, "
+                             "one with an unloading curve, or a damped one does); use "
+                             "`functions()`.")
         if self._memory_functions is None:
             r, r_regime = ca.SX.sym("r", 3), ca.SX.sym("r_regime", 3)
             s = ca.SX.sym("stroke_set")
             p = ca.SX.sym("p", len(self.param_names))
+            rate = ca.SX.sym("rate_gain"), ca.SX.sym("rate_offset")
             el = self._axial()
             theta = self._theta(el, p)
-            P = self.memory_force_expr(r, s, p)
-            Dp = ca.jacobian(self.memory_force_expr(r, s, p, r_regime), r)
-            s_next = absorber.next_set(el.curve, self.geometry(r)["delta_S"], s, theta)
-            free = ca.DM(self.hinge) + (self.length + absorber.free_deflection(
-                el.curve, s, theta)) * ca.DM(self.e0)
+            P = self.memory_force_expr(r, s, p, rate=rate)
+            Dp = ca.jacobian(self.memory_force_expr(r, s, p, r_regime, rate), r)
+            delta_S = self.geometry(r)["delta_S"]
+            x0, rate0, dt = ca.SX.sym("stroke_start"), ca.SX.sym("mean_rate"), ca.SX.sym("dt")
+            if el.curve.has_memory:
+                s_next = absorber.next_set(el.curve, delta_S, s, theta)
+            else:                       # a damped elastic element: nothing to remember
+                s_next = s
+            free = absorber.relaxed_deflection(el.curve, x0, s, rate0, dt, theta)
+            free = ca.DM(self.hinge) + (self.length + free) * ca.DM(self.e0)
+            names = ["r", "stroke_set", "p", "rate_gain", "rate_offset"]
             self._memory_functions = {
-                "strut_force_memory": ca.Function("strut_force_memory", [r, s, p], [P],
-                                                  ["r", "stroke_set", "p"], ["P"]),
+                "strut_force_memory": ca.Function("strut_force_memory", [r, s, p, *rate], [P],
+                                                  names, ["P"]),
                 "strut_stiffness_memory": ca.Function(
-                    "strut_stiffness_memory", [r, s, p, r_regime], [Dp],
-                    ["r", "stroke_set", "p", "r_regime"], ["Dp"]),
+                    "strut_stiffness_memory", [r, s, p, *rate, r_regime], [Dp],
+                    names + ["r_regime"], ["Dp"]),
                 "strut_next_set": ca.Function("strut_next_set", [r, s, p], [s_next],
                                               ["r", "stroke_set", "p"], ["next_set"]),
-                "strut_free_foot": ca.Function("strut_free_foot", [s, p], [free],
-                                               ["stroke_set", "p"], ["r"]),
+                "strut_free_foot": ca.Function(
+                    "strut_free_foot", [s, p, x0, rate0, dt], [free],
+                    ["stroke_set", "p", "stroke_start", "mean_rate", "dt"], ["r"]),
             }
         return self._memory_functions
 

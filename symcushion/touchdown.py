@@ -193,6 +193,16 @@ def _leg_params(scene: Scene):
     return lay.names, [(sl.start, sl.stop) for sl in lay._legs]
 
 
+def _memory_leg_input(leg, fns, p_leg, foot, rho0, h) -> LegInput:
+    """A leg on the memory law in the step: its free foot at the start is where it
+    relaxed to, at the end where it relaxes to over the step (symcushion.absorber)."""
+    stroke0 = fns["strut_geometry"](rho0)[1]
+    rest = fns["strut_free_foot"](foot["stroke_set"], p_leg, stroke0, foot["stroke_chord"], h)
+    return LegInput(strut=leg, fns=fns, p_leg=p_leg, rest=rest, foot=foot, rho0=rho0,
+                    stroke_set=foot["stroke_set"], stroke_chord=foot["stroke_chord"],
+                    rest_start=rho0)
+
+
 def build_model(scene: Scene) -> StepModel:
     """Build the ``touchdown_step`` Function of a scene.
 
@@ -222,20 +232,21 @@ def build_model(scene: Scene) -> StepModel:
     body = xl.unpack(X)
     pos, vel, quat, omega = (body[k] for k in ("position", "velocity", "attitude",
                                                 "angular_velocity"))
-    feet = [{f: body[f][j] for f in ("foot", "contact", "force_body", "stroke_set")}
-            for j in range(n_legs)]
+    feet = [{f: body[f][j] for f in ("foot", "contact", "force_body", "stroke_set",
+                                     "stroke_chord")} for j in range(n_legs)]
     # the legs on the memory law (symcushion.absorber): their unloaded foot is where the
     # axial element's set leaves it
-    memory = [scene.hysteresis == "memory" and leg.axial_memory for leg in legs]
+    memory = [scene.hysteresis == "memory" and leg.axial_state for leg in legs]
     fns_of = [dict(leg.functions(), **(leg.memory_functions() if mem else {}))
               for leg, mem in zip(legs, memory)]
     p_of = [p[o[0]:o[1]] for o in offsets]
-    rest = [fns_of[j]["strut_free_foot"](feet[j]["stroke_set"], p_of[j]) if memory[j]
-            else ca.DM(leg.rest_foot) for j, leg in enumerate(legs)]
+    rest = [ca.DM(leg.rest_foot) for leg in legs]
 
     R = quat_to_rot(quat)
 
     def body_frame_foot(j, foot, R_, pos_):
+        if memory[j]:               # a free foot of the memory law is where it relaxed to
+            return R_.T @ (foot["foot"] - pos_)
         in_contact = foot["contact"] > 0.5
         return ca.if_else(in_contact, R_.T @ (foot["foot"] - pos_), rest[j])
 
@@ -286,9 +297,10 @@ def build_model(scene: Scene) -> StepModel:
     feet_step = FeetStep(scene, StepPoses(h=h, pos=pos, quat=quat, R=R, vel=vel, omega=omega,
                                           vel_h=vel_h, omega_h=omega_h, pos1=pos1, R1=R1),
                          mu, [X, p, h])
-    leg_in = [LegInput(strut=legs[j], fns=fns_of[j], p_leg=p_of[j], rest=rest[j], foot=feet[j],
-                       rho0=rho0[j], stroke_set=feet[j]["stroke_set"] if memory[j] else None)
-              for j in range(n_legs)]
+    leg_in = [_memory_leg_input(legs[j], fns_of[j], p_of[j], feet[j], rho0[j], h)
+              if memory[j] else
+              LegInput(strut=legs[j], fns=fns_of[j], p_leg=p_of[j], rest=rest[j], foot=feet[j],
+                       rho0=rho0[j]) for j in range(n_legs)]
 
     res, release_loading = [], {}
     stored_loading = {j: feet[j]["contact"] < 2.5 for j in lockable}
@@ -493,8 +505,9 @@ def build_model(scene: Scene) -> StepModel:
             contact = ca.if_else(lk, LOCKED, ca.if_else(stays, ca.if_else(loading1, 1.0,
                                                                           UNLOADING), 0.0))
             b1_active = ca.logic_and(b1_active, ca.logic_not(ca.logic_or(st, locked0[j])))
+        kept = ("stroke_set", "stroke_chord")
         new_feet.append(dict(foot=foot_w, contact=contact, force_body=P1,
-                             stroke_set=r["stroke_set"] if memory[j] else feet[j]["stroke_set"]))
+                             **{f: (r if memory[j] else feet[j])[f] for f in kept}))
         if scene.events in ("branch", "lock") and locates_switch(leg):
             # the kick at the located loading/unloading switch (symcushion.branch_switch)
             dF, dT, _ = branch_switch_kick(
@@ -521,7 +534,8 @@ def build_model(scene: Scene) -> StepModel:
 
     x_next = xl.pack(position=pos1, velocity=vel1, attitude=quat1, angular_velocity=omega1,
                      **{f: [foot[f] for foot in new_feet] for f in ("foot", "contact",
-                                                                    "force_body", "stroke_set")})
+                                                                    "force_body", "stroke_set",
+                                                                    "stroke_chord")})
     y = yl.pack(acceleration=acc1, **{f.name: [o[f.name] for o in outputs]
                                        for f in yl.leg_fields})
     step = ca.Function("touchdown_step", [X, p, h], [x_next, y], ["x", "p", "dt"],

@@ -117,10 +117,12 @@ class Stats:
         if not all(np.all(np.isfinite(a)) for a in arrays):
             self.finite = False
             return
-        X = np.column_stack([traj.position, traj.velocity, traj.attitude,
-                             traj.angular_velocity] + [
-            np.column_stack([traj.foot[:, j], traj.contact[:, j], traj.force[:, j]])
-            for j in range(traj.foot.shape[1])]).T
+        legs = range(traj.foot.shape[1])
+        X = state_layout(len(legs)).pack_columns(
+            len(traj.t), position=traj.position.T, velocity=traj.velocity.T,
+            attitude=traj.attitude.T, angular_velocity=traj.angular_velocity.T,
+            foot=[traj.foot[:, j].T for j in legs], contact=[traj.contact[:, j] for j in legs],
+            force_body=[traj.force[:, j].T for j in legs])
         E, d = inv.map(X.shape[1])(X)
         E, d = np.asarray(E).ravel(), np.asarray(d).reshape(-1, X.shape[1]).T
         if first_row:
