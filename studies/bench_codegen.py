@@ -21,7 +21,12 @@ program ``touchdown`` (C only), timed from outside as a process (start to
 exit, CSV written, nothing subtracted) and from inside with clock_gettime
 over its step loop. Python-side timings are the best of BEST_OF interleaved
 rounds of process CPU time; the program's, the best of BEST_OF runs of wall
-time. With ``--large`` the script also builds the implicit step with
+time. Before anything is timed, what is timed is checked (``studies/bench_check.py``):
+the compiled contact steps (``casadi.external``, mapped, and the C loop)
+finite and equal to the SX Function on the VM to round-off; the Fig. 3 drop,
+with the scene's own parameters (``model.default_p``), finite and equal bit
+for bit to the VM rollout for the compiled rollout, both Python step loops and
+the standalone program's CSV. With ``--large`` the script also builds the implicit step with
 friction (Fig. 4 scene with method 'implicit', the largest graph) and
 recompiles each generated source at -O3, -O2 and -O1: gcc's CPU time, and
 the program's time per step built from each.
@@ -46,6 +51,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from bench_check import BITWISE, ROUNDOFF_RTOL, check_equal, check_rollout  # studies/
 from symcushion import codegen
 from symcushion.codegen import CFLAGS, build_program, compiled_model, generate, load_compiled
 from symcushion.contact import METHODS, contact_step
@@ -57,6 +63,8 @@ ROOT = Path(__file__).resolve().parent.parent
 DOC = ROOT / "docs" / "codegen.md"
 FIG3 = ROOT / "studies" / "fig3.toml"
 FIG4 = ROOT / "studies" / "fig4.toml"
+#: Name of this benchmark in the messages of its checks.
+BENCH = "bench_codegen"
 
 #: Contact-step cases per batched call and per oracle loop.
 BATCH = 1000
@@ -137,6 +145,10 @@ def native_contact(out_dir: Path, cases: dict) -> tuple[dict, np.ndarray]:
     cases_file, out_file = out_dir / "cases.bin", out_dir / "contact_out.bin"
     np.ascontiguousarray(table, dtype=np.float64).tofile(cases_file)
     program = build_program(out_dir, Path(codegen.__file__).parent / "c" / "bench_contact.c")
+    # one pass first: its outputs are checked before the timed runs
+    subprocess.run([str(program), str(cases_file), "1", str(out_file)], capture_output=True,
+                   check=True)
+    outputs = np.fromfile(out_file).reshape(3, n, 10)
     best = {}
     for _ in range(BEST_OF):
         run = subprocess.run([str(program), str(cases_file), str(C_REPEAT), str(out_file)],
@@ -145,7 +157,7 @@ def native_contact(out_dir: Path, cases: dict) -> tuple[dict, np.ndarray]:
             name, value = line.split()
             sec = float(value.split("=")[1]) * 1e-9
             best[name] = min(best.get(name, np.inf), sec)
-    return best, np.fromfile(out_file).reshape(3, n, 10)
+    return best, outputs
 
 
 def measure_contact(compiled: dict, oracle, out_dir: Path) -> list[dict]:
@@ -164,6 +176,10 @@ def measure_contact(compiled: dict, oracle, out_dir: Path) -> list[dict]:
         vm_map, ext_map = vm.map(BATCH), ext.map(BATCH)
         reference = np.vstack([np.asarray(o) for o in vm_map(*columns)]).T
         external = np.vstack([np.asarray(o) for o in ext_map(*columns)]).T
+        for label, values in (("casadi.external, mapped", external),
+                              ("C loop of bench_contact.c", native_out[k])):
+            check_equal(BENCH, f"{vm.name()} ({label}), {BATCH} oracle cases", values,
+                        reference, rtol=ROUNDOFF_RTOL, reference_name="the SX Function on the VM")
         fn = steps[method]
 
         def run_oracle(fn=fn):
@@ -237,22 +253,33 @@ def measure_drop(scene, out_dir: Path) -> dict:
         x = x0
         for _ in range(steps):
             x = model.step(x, p, scene.dt)[0]
+        return x
 
     def c_loop():
         x = x0
         for _ in range(steps):
             x = compiled.step(x, p, scene.dt)[0]
+        return x
 
+    X_c, _ = check_rollout(BENCH, f"{scene.name} compiled rollout", c_rollout, scene, x0, p,
+                           scene.dt, steps, rtol=BITWISE)
     X_vm = np.asarray(vm_rollout(x0, p, scene.dt)[0])
-    X_c = np.asarray(c_rollout(x0, p, scene.dt)[0])
+    for label, loop in (("VM", vm_loop), ("C", c_loop)):
+        check_equal(BENCH, f"{scene.name}: last state of the {label} loop over touchdown_step",
+                    np.asarray(loop()).ravel(), X_vm[:, -1], rtol=BITWISE,
+                    reference_name="the VM rollout")
     best = best_seconds({
         "vm_loop": (vm_loop, steps),
         "vm_rollout": (lambda: vm_rollout(x0, p, scene.dt), steps),
         "c_loop": (c_loop, steps),
         "c_rollout": (lambda: c_rollout(x0, p, scene.dt), steps),
     })
-    # the program once with one loop (the process as a user runs it) ...
+    # the program once with one loop (the process as a user runs it), checked first ...
     csv = out_dir / "bench.csv"
+    subprocess.run([str(gen.program), "-o", str(csv)], capture_output=True, check=True)
+    check_equal(BENCH, f"{scene.name}: states in the C program's CSV",
+                np.loadtxt(csv, delimiter=",", skiprows=1)[1:, 1:], X_vm.T, rtol=BITWISE,
+                reference_name="the VM rollout")
     wall = np.inf
     for _ in range(BEST_OF):
         start = time.perf_counter()

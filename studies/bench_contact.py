@@ -30,7 +30,11 @@ Method:
   ns per evaluation and the implicit/robust ratio; also the steps as the
   simulator calls them (``contact_step_call``: the implicit step skips its
   slip part for a sticking foot), in a second library timed by the same
-  harness.
+  harness. Before the C timing, one pass of each harness over the cases
+  must give finite outputs equal (to round-off, ``bench_check``) to the
+  same steps evaluated on the CasADi VM; before the Python timing, each
+  timed Function's outputs must be finite and its single call equal to its
+  mapped call on the same case.
 
 Output: Markdown tables on stdout, also written to ``docs/contact.md`` under
 "Benchmark". Run: ``python studies/bench_contact.py``.
@@ -47,6 +51,8 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from bench_check import (BITWISE, ROUNDOFF_RTOL, BenchmarkCheckError, check_equal,  # studies/
+                         check_finite)
 from symcushion import codegen, report
 from symcushion.contact import (INPUT_NAMES, INPUT_SHAPES, METHODS, OUTPUT_NAMES, contact_step, contact_step_call,
                                 stack_inputs)
@@ -67,6 +73,13 @@ DOC = Path(__file__).resolve().parent.parent / "docs" / "contact.md"
 #: The C timing loop (symcushion/c/bench_contact.c).
 HARNESS = Path(codegen.__file__).parent / "c" / "bench_contact.c"
 SECTION = "Benchmark"
+#: Name of this benchmark in the messages of its checks.
+BENCH = "bench_contact"
+#: Columns of each output in a row of the harness's output file (OUT_SIZE = 10
+#: doubles per case and step, in OUTPUT_NAMES order: delta, P, k, contact).
+HARNESS_COLUMNS = {"delta": slice(0, 3), "P": slice(3, 6), "k": slice(6, 9),
+                   "contact": slice(9, 10)}
+HARNESS_WIDTH = 10
 
 
 # ---------------------------------------------------------------------------
@@ -266,14 +279,52 @@ def native_ratio(cases, called=False):
         else:
             codegen.generate(out, build=True)
             program = codegen.build_program(out, HARNESS)
+        arguments = [str(program), str(out / "cases.bin"), "1", str(out / "out.bin")]
+        subprocess.run(arguments, capture_output=True, check=True)
+        outputs = (out / "out.bin").read_bytes()
+        check_native(outputs, cases, called)
+        arguments[2] = str(C_REPEAT)
         for _ in range(BEST_OF):
-            run = subprocess.run([str(program), str(out / "cases.bin"), str(C_REPEAT),
-                                  str(out / "out.bin")], capture_output=True, text=True, check=True)
+            run = subprocess.run(arguments, capture_output=True, text=True, check=True)
             for line in run.stdout.splitlines():
                 name, value = line.split()
                 best[name] = min(best.get(name, np.inf), float(value.split("=")[1]))
-        best["outputs"] = (out / "out.bin").read_bytes()
+        best["outputs"] = outputs
     return best
+
+
+def check_native(outputs: bytes, cases, called: bool) -> None:
+    """Raise unless the harness's outputs equal the steps on the CasADi VM.
+
+    ``outputs`` is what ``symcushion/c/bench_contact.c`` wrote: for each step of
+    METHODS and each case, the outputs of OUTPUT_NAMES (HARNESS_COLUMNS). Each
+    must be finite and equal, to round-off (ROUNDOFF_RTOL), to
+    ``contact_step(method)`` mapped over the same cases on the VM.
+    """
+    got = np.frombuffer(outputs, dtype=np.float64)
+    shape = (len(METHODS), len(cases), HARNESS_WIDTH)
+    if got.size != np.prod(shape):
+        raise BenchmarkCheckError(f"{BENCH}: the harness wrote {got.size} doubles, expected "
+                                  f"{np.prod(shape)} (steps × cases × outputs = {shape}).")
+    got = got.reshape(shape)
+    how = "as the simulator calls it" if called else "branch-free graph"
+    for k, method in enumerate(METHODS):
+        reference = evaluate(contact_step(method), cases)
+        for name in OUTPUT_NAMES:
+            check_equal(BENCH, f"compiled contact_step_{method} ({how}) output `{name}`",
+                        got[k][:, HARNESS_COLUMNS[name]], reference[name].T,
+                        rtol=ROUNDOFF_RTOL, reference_name="contact_step on the CasADi VM")
+
+
+def check_cost(f, batched, one, args) -> None:
+    """Raise unless the Functions :func:`cost` times give finite, consistent outputs:
+    ``batched(*args)`` finite, and ``f(*one)`` equal, bit for bit, to its first case."""
+    many = [np.asarray(o, dtype=float) for o in batched(*args)]
+    single = [np.asarray(o, dtype=float) for o in f(*one)]
+    for name, column, value in zip(OUTPUT_NAMES, many, single):
+        check_finite(BENCH, f"`{f.name()}` mapped output `{name}`", column)
+        check_equal(BENCH, f"`{f.name()}` single-call output `{name}`", value.ravel(),
+                    column[:, 0], rtol=BITWISE, reference_name="its mapped call's first case")
 
 
 def stick_share(cases):
@@ -312,6 +363,7 @@ def cost(cases):
         for friction in (True, False):
             f = contact_step(method, friction)
             batched = f.map(BATCH)
+            check_cost(f, batched, one, args)
             rows.append(dict(
                 function=f.name(), n_instructions=f.n_instructions(), n_nodes=f.n_nodes(),
                 single=evals_per_second(lambda: f(*one), 1),

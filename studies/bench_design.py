@@ -15,6 +15,11 @@ solve, ``--cold`` to rebuild the library in a fresh folder, ``--check`` for
 the gradient check at the start and at the optimum on the compiled path,
 ``--opt-level -O0`` for other gcc flags). ``--opt-levels STUDY`` instead
 measures, for a study, gcc's time and one Jacobian evaluation at -O0..-O3.
+
+Before the compiled solve, the compiled NLP's objective and constraints at
+the initial design (every scenario with its own μ, gravity, mass and inertia)
+must be finite and equal to round-off to the same NLP on the CasADi VM
+(``studies/bench_check.py``); the check's time is left out of the timings.
 """
 from __future__ import annotations
 
@@ -27,11 +32,34 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from bench_check import ROUNDOFF_RTOL, check_equal  # studies/bench_check.py
 from symcushion.compiled_nlp import COMPILE_FLAGS, DEFAULT_CACHE, SCENARIOS, compile_design
 from symcushion.optimise import load_study
 
 ROOT = Path(__file__).resolve().parents[1]
 STUDY = ROOT / "studies" / "optimise_lander.toml"
+#: Name of this benchmark in the messages of its checks.
+BENCH = "bench_design"
+
+
+def vm_reference(problem) -> tuple:
+    """(x, f, g): the NLP vector of the initial design and (f, g) there on the VM.
+
+    Call before ``use_compiled``, which makes ``fg`` evaluate the library."""
+    x = problem.scaled(problem.initial)
+    f, g = problem.fg(x)
+    return x, f, g
+
+
+def check_compiled(problem, reference) -> None:
+    """Raise unless ``problem.fg`` (compiled) at the reference's x equals the VM's (f, g)."""
+    x, f_vm, g_vm = reference
+    f, g = problem.fg(x)
+    name = "the same NLP on the CasADi VM"
+    check_equal(BENCH, "compiled objective at the initial design", [f], [f_vm],
+                rtol=ROUNDOFF_RTOL, reference_name=name)
+    check_equal(BENCH, "compiled constraints at the initial design", g, g_vm,
+                rtol=ROUNDOFF_RTOL, reference_name=name)
 
 
 def opt_levels(study_path, levels=("-O0", "-O1", "-O2", "-O3"), repeats=5):
@@ -60,7 +88,15 @@ def run(compiled: bool, cache_dir, cflags=COMPILE_FLAGS, study_path=STUDY) -> di
     row = dict(path="compiled C" if compiled else "CasADi VM",
                problem_seconds=problem.build_seconds)
     if compiled:
+        check0, check_cpu0 = time.perf_counter(), time.process_time()
+        reference = vm_reference(problem)
+        check_seconds = (time.perf_counter() - check0, time.process_time() - check_cpu0)
         built = problem.use_compiled(cache_dir, progress=True, cflags=cflags)
+        check0, check_cpu0 = time.perf_counter(), time.process_time()
+        check_compiled(problem, reference)
+        # the checks are not part of what is timed
+        wall0 += check_seconds[0] + time.perf_counter() - check0
+        cpu0 += check_seconds[1] + time.process_time() - check_cpu0
         row.update(generate=built.seconds["generate"], gcc=built.seconds["compile"],
                    load=built.seconds["load"], cached=built.cached, threads=built.threads)
         # the same build again: what a second run of the study pays (a cache hit)

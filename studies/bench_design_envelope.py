@@ -10,6 +10,12 @@ Jacobians are checked equal bit for bit across the backends.
 
 Method: the study's pool (its size and seed), the study's scenario selection,
 then ``EnvelopeDesign`` built once per backend; best of ``REPEATS`` calls.
+Before timing, the compiled ratios at the study's initial design (the
+scenarios' own parameters: μ, slope gravity, mass, inertia, the curves) must
+be finite and equal to round-off to the same graph on the CasADi VM
+(``EnvelopeDesign.reference_ratios``), and every backend's ratios and
+Jacobian finite and equal, bit for bit, to one thread's
+(``studies/bench_check.py``).
 
 Run: ``PYTHONPATH=. python studies/bench_design_envelope.py [--pool N]``.
 """
@@ -23,6 +29,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from bench_check import BITWISE, ROUNDOFF_RTOL, check_equal, check_finite  # studies/
 from symcushion.envelope import run_envelope
 from symcushion.robust import EnvelopeDesign
 from symcushion.robust.select import select_scenarios
@@ -32,6 +39,29 @@ ROOT = Path(__file__).resolve().parents[1]
 STUDY = ROOT / "studies" / "design_for_envelope.toml"
 #: Timed calls per backend (the best is kept: a shared machine only adds time).
 REPEATS = 3
+#: Name of this benchmark in the messages of its checks.
+BENCH = "bench_design_envelope"
+
+
+def check_reference(problem) -> None:
+    """Raise unless the compiled ratios at the initial design equal the VM's (to round-off)."""
+    check_equal(BENCH, f"compiled ratios of {problem.x0.shape[1]} scenarios at the initial "
+                "design", problem.ratios(), problem.reference_ratios(), rtol=ROUNDOFF_RTOL,
+                reference_name="touchdown_margins on the CasADi VM")
+
+
+def check_backend(name: str, problem, x, reference=None) -> tuple:
+    """(ratios, Jacobian) of one backend at x, checked: finite, and bit for bit equal
+    to ``reference`` (one thread's pair) when given."""
+    jac = ca.Function("j", [problem.nlp["x"]], [ca.jacobian(problem.nlp["g"], problem.nlp["x"])])
+    theta = x[:problem.n_variables] * problem.scale
+    got = (check_finite(BENCH, f"{name}: ratios", problem.ratios(theta)),
+           check_finite(BENCH, f"{name}: constraint Jacobian", np.asarray(jac(x))))
+    if reference is not None:
+        for label, value, ref in zip(("ratios", "constraint Jacobian"), got, reference):
+            check_equal(BENCH, f"{name}: {label}", value, ref, rtol=BITWISE,
+                        reference_name="one thread's")
+    return got
 
 
 def _time(problem, x):
@@ -67,9 +97,12 @@ def main():
         problem = EnvelopeDesign(study.envelope, cond, study.variables, threads=threads,
                                  **common)
         x = problem.scaled(problem.initial)
+        if reference is None:
+            check_reference(problem)
+        checked = check_backend(f"threads {threads}", problem, x, reference)
+        reference = checked if reference is None else reference
         r, j, J = _time(problem, x)
-        reference = J if reference is None else reference
-        rows.append((f"threads {threads}", r, j, np.array_equal(J, reference)))
+        rows.append((f"threads {threads}", r, j, np.array_equal(J, reference[1])))
     try:
         import distributed
     except ImportError:
@@ -84,8 +117,9 @@ def main():
             problem = EnvelopeDesign(study.envelope, cond, study.variables, client=client,
                                      **common)
             problem.ratios(problem.initial)          # workers load the library once
+            check_backend(f"Dask, {workers} worker(s)", problem, x, reference)
             r, j, J = _time(problem, x)
-            rows.append((f"Dask, {workers} worker(s)", r, j, np.array_equal(J, reference)))
+            rows.append((f"Dask, {workers} worker(s)", r, j, np.array_equal(J, reference[1])))
         finally:
             client.close()
             cluster.close()

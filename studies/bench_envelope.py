@@ -34,7 +34,12 @@ reference for the held stroke of docs/event-order.md.
 With ``--refine`` the midpoint rule with and without the lock at Δt = 0.5
 down to 0.0625 ms, with the CPU per case of each run.
 
-Each writes its section of docs/envelope.md (``symcushion.report``).
+Each writes its section of docs/envelope.md (``symcushion.report``). Before
+the throughput runs are timed, the compiled ``envelope_case`` they run is
+checked on the study's first CHECK_CASES cases, with their own parameters
+(``case_params``: the scene's curves, mass and inertia, the case's μ and
+slope gravity): final states and summaries finite and equal, bit for bit, to
+the same Function on the CasADi VM (``studies/bench_check.py``).
 
     python studies/bench_envelope.py [--n 1000] [--full] [--accuracy] [--methods]
                                      [--class-changes [--refine]] [--reference]
@@ -53,12 +58,14 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from bench_check import BITWISE, check_equal  # studies/bench_check.py
 from symcushion import report
 from symcushion.envelope import (CLASSES, CONFIDENCE, build_envelope, case_params, classify,
-                                 evaluate, initial_states, load_study, reach, run_batch, run_envelope,
-                                 sample_conditions, wilson_interval)
+                                 envelope_function, evaluate, initial_states, load_study, reach,
+                                 run_batch, run_envelope, sample_conditions, wilson_interval)
 from symcushion.envelope.study import study_from_dict
 from symcushion.scene import read_toml
+from symcushion.simulate import build_model
 
 ROOT = Path(__file__).resolve().parent.parent
 STUDY = ROOT / "studies" / "envelope_lander.toml"
@@ -90,6 +97,12 @@ METHOD_REFERENCE = ("implicit", "end", 5e-4)
 MARGINAL_CASE = 2462
 #: Heading of the section --methods writes in docs/envelope.md.
 METHODS_HEADING = "Sensitivity to the contact method and Δt"
+#: Name of this benchmark in the messages of its checks.
+BENCH = "bench_envelope"
+#: Cases checked against the VM before the throughput is timed: a few are
+#: enough to catch wrong parameters (every case would be NaN), and each costs
+#: a whole touchdown on the VM (seconds with the study's 16,000 steps).
+CHECK_CASES = 2
 
 
 def cpu_name() -> str:
@@ -125,10 +138,39 @@ def measure(study, label: str, **kwargs) -> dict:
     return row
 
 
+def check_cases(study, cache_dir=CACHE, count: int = CHECK_CASES) -> None:
+    """Check the compiled ``envelope_case`` a study runs, on its first ``count`` cases.
+
+    The cases' initial states and parameters are those the study runs
+    (``initial_states``, ``case_params``); their final states and summaries
+    from the compiled library (``run_batch``) must be finite and equal, bit
+    for bit, to ``envelope_function(build_model(scene))`` on the CasADi VM.
+    The scene must have friction (μ > 0) and the cases μ > 0: the library
+    the study runs them on.
+    """
+    scene = study.scene
+    conditions = sample_conditions(study.with_(n=count))
+    if scene.mu <= 0 or np.any(conditions["mu"] <= 0):
+        raise ValueError(f"`study` must have friction in its scene and its first {count} cases "
+                         f"(μ > 0) for the check, got scene μ = {scene.mu!r} and cases' μ "
+                         f"{conditions['mu']}.")
+    x0, gravity = initial_states(study, conditions)
+    p = case_params(scene, conditions["mu"], gravity)
+    x_end, summary = run_batch(build_envelope(scene, cache_dir), x0, p, scene.dt)
+    x_ref, summary_ref = envelope_function(build_model(scene)).map(count)(x0, p, scene.dt)
+    name = "envelope_case on the CasADi VM (same x0, p, Δt)"
+    what = f"{scene.name}, first {count} cases, compiled envelope_case"
+    check_equal(BENCH, f"{what}: final states", x_end, np.asarray(x_ref), rtol=BITWISE,
+                reference_name=name)
+    check_equal(BENCH, f"{what}: summaries", summary, np.asarray(summary_ref), rtol=BITWISE,
+                reference_name=name)
+
+
 def throughput(n: int, full: bool) -> str:
     study = load_study(STUDY).with_(n=n)
     cores = os.cpu_count() or 1
     build_envelope(study.scene, CACHE, progress=True)
+    check_cases(study)
     # the 'robust' step on the same cases and Δt, one thread: the cost the exact step is
     # measured against (its classes differ, docs/envelope.md "Sensitivity")
     # ('robust' has the backward-Euler slip rule only)

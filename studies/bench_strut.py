@@ -14,7 +14,11 @@ symbols (``force_expr``/``stiffness_paper_expr`` called on MX, AD by
 (``n_instructions``, ``n_nodes``), and evaluations per second for single
 calls from Python and for one call of ``f.map(1000)`` (serial) on 1000 poses:
 the best of BEST_OF interleaved rounds, timed in process CPU time so that
-other processes on a shared machine disturb the numbers less.
+other processes on a shared machine disturb the numbers less. Before
+timing, each variant's D_p on the poses, with the leg's own curve parameters,
+must be finite and equal to round-off to the SX AD Function's
+(``studies/bench_check.py``): the AD and the hand formula are independent
+derivations of one matrix.
 
 Output: a Markdown table on stdout, also written to ``docs/strut.md`` under
 "Benchmark". Run: ``python studies/bench_strut.py``.
@@ -28,6 +32,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from bench_check import ROUNDOFF_RTOL, check_equal  # studies/bench_check.py
 from symcushion import Crushable, HingedStrut, Linear
 from symcushion import report
 
@@ -41,6 +46,8 @@ REPEAT_SECONDS = 0.05
 
 DOC = Path(__file__).resolve().parent.parent / "docs" / "strut.md"
 SECTION = "Benchmark"
+#: Name of this benchmark in the messages of its checks.
+BENCH = "bench_strut"
 
 
 def representative_leg() -> HingedStrut:
@@ -101,20 +108,43 @@ def best_rates(timers: dict) -> dict:
     return {key: timers[key][1] / best[key] for key in timers}
 
 
+def variants(leg: HingedStrut) -> dict:
+    """The four stiffness Functions by (symbols, name): AD and (2.3), on SX and on MX."""
+    found = {("SX", name): f for name, f in leg.functions().items()
+             if name in ("strut_stiffness", "strut_stiffness_paper")}
+    found.update({("MX", name): f for name, f in mx_functions(leg).items()})
+    return found
+
+
+def check_variants(functions: dict, r, v, p) -> dict:
+    """Each Function's D_p on the poses (r, v: (3, n)) with parameters p, checked.
+
+    Every output must be finite and equal, to round-off, to the SX AD
+    Function's (``bench_check.check_equal``); returns the outputs by key.
+    """
+    count = r.shape[1]
+    p_batch = np.tile(np.asarray(p, dtype=float)[:, None], (1, count))
+    outputs = {key: np.asarray(f.map(count)(r, v, p_batch)) for key, f in functions.items()}
+    reference = outputs[("SX", "strut_stiffness")]
+    for key, out in outputs.items():
+        check_equal(BENCH, f"{key[0]} `{key[1]}` on {count} poses", out, reference,
+                    rtol=ROUNDOFF_RTOL, reference_name="the SX `strut_stiffness` (AD of (2.1))")
+    return outputs
+
+
 def measure(leg: HingedStrut) -> list[dict]:
     rng = np.random.default_rng(0)
     r, v = random_poses(leg, BATCH, rng)
     p = leg.param_values
     p_batch = np.tile(p[:, None], (1, BATCH))
-    variants = {("SX", name): f for name, f in leg.functions().items()
-                if name in ("strut_stiffness", "strut_stiffness_paper")}
-    variants.update({("MX", name): f for name, f in mx_functions(leg).items()})
-    reference = np.asarray(variants[("SX", "strut_stiffness")].map(BATCH)(r, v, p_batch))
+    functions = variants(leg)
+    outputs = check_variants(functions, r, v, p)
+    reference = outputs[("SX", "strut_stiffness")]
     timers, rows = {}, []
     r0, v0 = r[:, 0], v[:, 0]
-    for key, f in variants.items():
+    for key, f in functions.items():
         batched = f.map(BATCH)
-        out = np.asarray(batched(r, v, p_batch))
+        out = outputs[key]
         timers[key + ("single",)] = (lambda f=f: f(r0, v0, p), 1)
         timers[key + ("batch",)] = (lambda g=batched: g(r, v, p_batch), BATCH)
         rows.append(dict(symbols=key[0], function=key[1], n_instructions=f.n_instructions(),

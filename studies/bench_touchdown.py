@@ -10,14 +10,20 @@ Fig. 4 touchdown source?
 Method.
 symcushion: ``symcushion.codegen.compiled_model`` builds the scene's C code;
 its compiled ``touchdown_rollout`` (N steps in one C call, no Python per
-step) is called on the scene's initial state, best of BEST_OF calls; µs per
-step = time / N. Compile time: gcc's CPU time on the generated touchdown
+step) is called on the scene's initial state with the scene's own
+parameters (``model.default_p``: gravity, mass, inertia, μ), best of
+BEST_OF calls; µs per step = time / N. Before timing, one call's states and
+outputs must be finite and equal, bit for bit, to the uncompiled
+``build_model(scene)`` rolled out with the same x0, p and Δt
+(``studies/bench_check.py``). Compile time: gcc's CPU time on the generated touchdown
 source alone with ``codegen.CFLAGS`` (-O3).
 MuJoCo: ``symcushion.peers.build_mjcf`` on the same scene (its default
 timestep, solver settings of docs/peers.md), the state set by one short
 ``mujoco_simulate``-equivalent start (free joint at the scene's initial pose
 and velocity), then ``mujoco.mj_step(model, data, nstep=M)`` once, best of
-BEST_OF calls; µs per MuJoCo step = time / M. The ratio printed is MuJoCo's
+BEST_OF calls; µs per MuJoCo step = time / M. Before timing, the state after
+the M steps must be finite and equal, bit for bit, to the end of
+``symcushion.peers.mujoco_simulate`` on the same scene. The ratio printed is MuJoCo's
 µs per step over symcushion's µs per step, as in the cost target.
 
 Also, so that one run prints every cost target of the exact step: the
@@ -38,14 +44,17 @@ from pathlib import Path
 
 import numpy as np
 
+from bench_check import BITWISE, check_equal, check_finite, check_rollout  # studies/
 from bench_contact import NATIVE_CASES, native_ratio, spatial_cases  # studies/bench_contact.py
 from symcushion import codegen
 from symcushion.codegen import CFLAGS, compiled_model
-from symcushion.peers.mujoco_model import build_mjcf, mujoco_available
+from symcushion.peers.mujoco_model import build_mjcf, mujoco_available, mujoco_simulate
 from symcushion.scene import load_scene
-from symcushion.simulate import initial_state
+from symcushion.simulate import build_model, initial_state
 
 ROOT = Path(__file__).resolve().parent.parent
+#: Name of this benchmark in the messages of its checks.
+BENCH = "bench_touchdown"
 FIG3 = ROOT / "studies" / "fig3.toml"
 FIG4 = ROOT / "studies" / "fig4.toml"
 #: Timed calls per measurement, the same for both programs; the best is kept
@@ -68,35 +77,49 @@ def compile_cpu(source: Path, out_dir: Path) -> float:
     return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
 
 
+def check_symcushion(scene, rollout, steps: int) -> np.ndarray:
+    """Check the rollout this benchmark times; return its parameters ``p``.
+
+    One call of ``rollout`` (``steps`` steps) on the scene's initial state and
+    own parameters (``default_p``) must be finite and equal, bit for bit, to
+    the uncompiled ``build_model(scene)`` rolled out the same way.
+    """
+    p = build_model(scene).default_p
+    check_rollout(BENCH, f"{scene.name} ({scene.method}) compiled rollout", rollout, scene,
+                  initial_state(scene), p, scene.dt, steps, rtol=BITWISE)
+    return p
+
+
 def symcushion_us(scene, folder: Path) -> tuple[float, float, int]:
     """(µs per compiled step, gcc CPU s at -O3 of the touchdown source, SX instructions)."""
     steps = int(round(SECONDS / scene.dt))
     model = compiled_model(scene, folder, steps=steps)
     x0 = initial_state(scene)
-    p = np.zeros(model.np)
     rollout = model.rollout(steps)
+    p = check_symcushion(scene, rollout, steps)
     best = np.inf
     for _ in range(BEST_OF):
         start = time.perf_counter()
         rollout(x0, p, scene.dt)
         best = min(best, time.perf_counter() - start)
     seconds = compile_cpu(folder / f"{codegen.TOUCHDOWN}.c", folder)
-    from symcushion.simulate import build_model
     return 1e6 * best / steps, seconds, build_model(scene).step.n_instructions()
 
 
-def mujoco_us(scene) -> tuple[float, float]:
-    """(µs per native mj_step, MuJoCo timestep in s) on the project's model of the scene."""
+def mujoco_start(scene):
+    """(mujoco, model, data, start): the project's MuJoCo model of the scene, and
+    ``start()``, which puts ``data`` at the scene's initial state as
+    ``mujoco_simulate`` does (free joint at the initial pose and velocity, the
+    legs' joint angles solved from the feet)."""
     import mujoco
     from symcushion.peers import mujoco_model as mm
 
-    xml, settings = build_mjcf(scene)
+    xml, _ = build_mjcf(scene)
     model = mujoco.MjModel.from_xml_string(xml)
     data = mujoco.MjData(model)
     pos0, vel0, quat0, omega0, legs0 = mm._joint_state(scene, initial_state(scene))
-    steps = int(round(SECONDS / model.opt.timestep))
-    best = np.inf
-    for _ in range(BEST_OF):
+
+    def start():
         mujoco.mj_resetData(model, data)
         data.qpos[0:3], data.qpos[3:7] = pos0, quat0
         data.qvel[0:3], data.qvel[3:6] = vel0, omega0
@@ -104,9 +127,43 @@ def mujoco_us(scene) -> tuple[float, float]:
             data.qpos[model.jnt_qposadr[model.joint(f"leg{j}_gamma").id]] = th_g
             data.qpos[model.jnt_qposadr[model.joint(f"leg{j}_beta").id]] = th_b
         mujoco.mj_forward(model, data)
-        start = time.perf_counter()
+
+    return mujoco, model, data, start
+
+
+def check_mujoco(scene, steps: int) -> None:
+    """Check the native MuJoCo stepping this benchmark times.
+
+    ``mj_step(nstep=steps)`` from the scene's start must leave a finite state
+    equal, bit for bit, to the end of ``mujoco_simulate`` on the scene run for
+    ``steps`` MuJoCo steps (its duration rounded to whole steps).
+    """
+    mujoco, model, data, start = mujoco_start(scene)
+    start()
+    mujoco.mj_step(model, data, nstep=steps)
+    what = f"{scene.name} MuJoCo state after {steps} mj_step"
+    check_finite(BENCH, f"{what}: qpos", data.qpos)
+    check_finite(BENCH, f"{what}: qvel", data.qvel)
+    run = mujoco_simulate(scene.with_(duration=steps * model.opt.timestep),
+                          timestep=model.opt.timestep, output_dt=steps * model.opt.timestep)
+    name = "the end of mujoco_simulate on the same scene"
+    check_equal(BENCH, f"{what}: body position", data.qpos[0:3], run.position[-1],
+                rtol=BITWISE, reference_name=name)
+    check_equal(BENCH, f"{what}: body velocity", data.qvel[0:3], run.velocity[-1],
+                rtol=BITWISE, reference_name=name)
+
+
+def mujoco_us(scene) -> tuple[float, float]:
+    """(µs per native mj_step, MuJoCo timestep in s) on the project's model of the scene."""
+    mujoco, model, data, start = mujoco_start(scene)
+    steps = int(round(SECONDS / model.opt.timestep))
+    check_mujoco(scene, steps)
+    best = np.inf
+    for _ in range(BEST_OF):
+        start()
+        began = time.perf_counter()
         mujoco.mj_step(model, data, nstep=steps)
-        best = min(best, time.perf_counter() - start)
+        best = min(best, time.perf_counter() - began)
     return 1e6 * best / steps, float(model.opt.timestep)
 
 

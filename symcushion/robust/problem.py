@@ -44,7 +44,7 @@ from ..optimise.space import _DesignSpace
 from ..optimise.spec import _Block, _leg_param_names, Limits, VIOLATION_TOL
 from ..touchdown import build_model
 from .evaluate import build_margins, ScenarioRatios
-from .margins import CHECKS, DEFAULT_SHARPNESS
+from .margins import CHECKS, DEFAULT_SHARPNESS, margins_function
 
 __all__ = ["RISKS", "DEFAULT_ALPHA", "DEFAULT_SATURATION", "DEFAULT_HORIZON", "saturate",
            "EnvelopeDesign", "RobustResult"]
@@ -227,6 +227,7 @@ class EnvelopeDesign(_DesignSpace, _GradientCheck):
         nv, n_leg = len(self.var_names), len(self.param_names)
         design = np.zeros((model.np, nv))
         design[:n_leg] = self._map * self.scale          # p = p0 + design·w, w = θ/scale
+        self._design, self._sharpness = design, sharpness
         self.library, compile_seconds = build_margins(
             model, self.steps, self._limits, design, sharpness=sharpness, reach=reach(scene),
             cache_dir=cache_dir,
@@ -303,6 +304,21 @@ class EnvelopeDesign(_DesignSpace, _GradientCheck):
         """value/limit of every check (rows: :data:`CHECKS`) and scenario (columns) at θ."""
         theta = self.initial if theta is None else np.asarray(theta, dtype=float)
         return np.asarray(self._R(theta / self.scale), dtype=float)
+
+    def reference_ratios(self, theta=None) -> np.ndarray:
+        """:meth:`ratios` on the CasADi VM, without the compiled library.
+
+        The same ``touchdown_margins`` graph evaluated uncompiled, scenario by
+        scenario: the reference the compiled evaluation is checked against (one
+        whole rollout per scenario on the VM, so much slower than :meth:`ratios`).
+        """
+        theta = self.initial if theta is None else np.asarray(theta, dtype=float)
+        f = margins_function(self.model, self.steps, self._limits, sharpness=self._sharpness,
+                             design=self._design, reach=reach(self.scene))
+        w = theta / self.scale
+        return np.column_stack([np.asarray(f(self.x0[:, s], self.p0[:, s], w, self.scene.dt),
+                                           dtype=float).ravel()
+                                for s in range(self.x0.shape[1])])
 
     def losses(self, theta=None) -> np.ndarray:
         """L_s = max over checks of sat(r) − 1, per scenario, at θ."""
