@@ -30,8 +30,19 @@ def _cmd_reproduce(args):
     return 0
 
 
-#: Exit status of a run that finished with warnings under --strict.
+#: Exit statuses (docs/checks.md, "Exit statuses"). A command that works
+#: returns 0; bad input is 2.
+#: A run that gave a finding of severity error (its results are kept and
+#: run.json says ``"status": "errors"``); ``check``: the file has errors.
+EXIT_ERRORS = 1
+#: Bad input: a field, an option, a path (the one-line message names it).
+EXIT_BAD_INPUT = 2
+#: A run that finished with warnings under --strict.
 EXIT_WARNINGS = 3
+#: The output folder holds another run's results and --overwrite was not given.
+EXIT_OUTPUT_EXISTS = 4
+#: Ctrl-C (SIGINT): 128 + 2, as a shell reports it.
+EXIT_INTERRUPTED = 128 + signal.SIGINT
 
 
 def _scene_and_overrides(args):
@@ -56,37 +67,97 @@ def _run_monitor(scene, model):
 
 
 def _cmd_simulate(args):
-    from .results import ResultWriter, result_dir, trajectory_columns, versions
+    from .results import (RUN_FILES, ResultWriter, claim_output, remove_stale, result_dir,
+                          trajectory_columns, versions)
     from .scene import read_toml
     from .touchdown import build_model
 
     scene, overrides = _scene_and_overrides(args)
     directory = result_dir(args.out, scene.name)        # checked before any work
+    claim_output(directory, RUN_FILES, overwrite=args.overwrite)
     model = build_model(scene)
     size = model.graph_size()
     print(f"{scene.name}: {len(scene.legs)} legs, method {scene.method}, μ = {scene.mu:g}, "
           f"{scene.steps} steps of {scene.dt:g} s; step graph {size['instructions']} "
           "instructions" + (f" (+ {size['gated']} in the stroke lock's calls, run only in "
                             "the steps that need them)" if size["gated"] else ""), flush=True)
+    meta = {"scene": read_toml(args.scene), "scene_file": str(args.scene),
+            "overrides": overrides, "scene_summary": _summary(scene),
+            "versions": versions(), "adaptive": args.adaptive}
     with ResultWriter(directory, trajectory_columns(len(scene.legs))) as writer:
-        traj = _simulate_reporting(scene, model, args, writer)
-        meta = {"scene": read_toml(args.scene), "scene_file": str(args.scene),
-                "overrides": overrides, "scene_summary": _summary(scene),
-                "versions": versions(), "adaptive": args.adaptive, **traj.info}
+        try:
+            traj = _simulate_reporting(scene, model, args, writer)
+        except BaseException as exc:
+            if _interrupt_code(exc) is not None:
+                args.kept = _keep_interrupted(writer, meta, exc)
+            raise
+        _note_no_touchdown(traj)
+        errors = _errors(traj.info["warnings"])
+        meta.update(traj.info, status="errors" if errors else "complete", errors=len(errors))
         traj.info.update(scene_summary=meta["scene_summary"])
         files = writer.finish(meta)
+    remove_stale(directory, RUN_FILES, keep=files.values())
     print(f"wrote {files['csv']}, {files['npz'].name}, {files['json'].name} "
           f"({traj.info['steps']} steps, {traj.info['wall_seconds']:.2f} s wall, step "
           f"criterion max {traj.info['criterion_max']:.2e}, halvings {traj.info['halvings']}, "
           f"{len(traj.info['events'])} events)")
     if not args.no_plots:
         _figures(traj, scene, directory, args.frames)
-    if traj.info["warnings"]:
-        print(f"{len(traj.info['warnings'])} warning(s), listed in {files['json']}",
-              file=sys.stderr)
-        if args.strict:
-            return EXIT_WARNINGS
-    return 0
+    return _run_status(traj.info["warnings"], files["json"], args.strict)
+
+
+def _errors(findings) -> list:
+    return [w for w in findings if w.get("severity") == "error"]
+
+
+def _run_status(findings, where, strict) -> int:
+    """Report a finished run's findings; its exit status (errors beat warnings)."""
+    errors = _errors(findings)
+    for e in errors:                       # the run printed them as it went; the verdict last
+        print(f"error: t = {e['time']:.4g} s: {e['message']}", file=sys.stderr)
+    if findings:
+        print(f"{len(errors)} error(s), {len(findings) - len(errors)} warning(s), listed in "
+              f"{where}", file=sys.stderr)
+    if errors:
+        print(f"the run gave {len(errors)} error(s): its results are kept, marked "
+              f"\"status\": \"errors\" in {where}; exit status {EXIT_ERRORS}.", file=sys.stderr)
+        return EXIT_ERRORS
+    return EXIT_WARNINGS if findings and strict else 0
+
+
+def _note_no_touchdown(traj):
+    """A run that never touched down says so: a warning line and a run.json entry."""
+    from .monitor import no_touchdown
+
+    finding = no_touchdown(traj)
+    if finding is not None:
+        print(f"warning: {finding.message}", file=sys.stderr)
+        traj.info["warnings"].append({"time": finding.time, "kind": "warning",
+                                      "severity": finding.severity, "message": finding.message,
+                                      "details": finding.to_dict()})
+    traj.info["touched_down"] = finding is None
+
+
+def _keep_interrupted(writer, meta, exc) -> str | None:
+    """Write the rows of the finished blocks of an interrupted run, marked in run.json.
+
+    Returns a note of what was kept for the one-line exit message (None if
+    no block had finished: the writer's exit then removes its temporary files).
+    """
+    from .results import RUN_FILES, remove_stale
+
+    if writer.rows < 2:                         # the initial row only
+        return None
+    so_far = getattr(exc, "run_so_far", {})
+    t_end = writer.last_time
+    done = [e for e in so_far.get("events", []) if e["time"] <= t_end]
+    findings = [w for w in so_far.get("warnings", []) if w["time"] <= t_end]
+    files = writer.finish(dict(meta, status="interrupted", t_end=t_end, events=done,
+                               warnings=findings, errors=len(_errors(findings)),
+                               events_dropped=so_far.get("events_dropped", 0)))
+    remove_stale(writer.directory, RUN_FILES, keep=files.values())
+    return (f"the run up to t = {t_end:.6g} s is kept in {writer.directory} "
+            "(run.json: \"status\": \"interrupted\")")
 
 
 def _simulate_reporting(scene, model, args, writer):
@@ -329,6 +400,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="frames of animation.gif (default: %(default)s)")
     p.add_argument("--strict", action="store_true",
                    help=f"exit with status {EXIT_WARNINGS} if the run gave any warning")
+    _add_overwrite(p)
     p.set_defaults(func=_cmd_simulate)
 
     p = sub.add_parser("check", help="check a scene file (every field and the physics) "
@@ -352,6 +424,13 @@ def _parser() -> argparse.ArgumentParser:
     _add_study_commands(sub)
     _add_design_command(sub)
     return parser
+
+
+def _add_overwrite(p):
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace the results of an earlier run in the output folder (its stale "
+                        f"files are removed; without this the command stops with status "
+                        f"{EXIT_OUTPUT_EXISTS})")
 
 
 def _add_study_commands(sub):
@@ -429,7 +508,7 @@ def _add_design_command(sub):
 
 
 class Terminated(SystemExit):
-    """Raised by the SIGTERM handler; its code is 128 + the signal number."""
+    """Raised by the SIGTERM and SIGINT handler; its code is 128 + the signal number."""
 
 
 #: Seconds between re-raisings of a termination that has not reached :func:`main`.
@@ -439,11 +518,13 @@ class Terminated(SystemExit):
 #: run go on to its end.
 TERMINATION_REMINDER = 0.1
 
-_pending: int | None = None     # the exit code of a SIGTERM not yet reported
+_pending: int | None = None     # the exit code of a SIGTERM or SIGINT not yet reported
 
 
 def _terminate(signum, frame):
-    """SIGTERM ends the run like Ctrl-C: temporary files are removed, results kept whole.
+    """SIGTERM and SIGINT (Ctrl-C) end a command cleanly: temporary files are
+    removed, what is complete is kept (a run's finished blocks, an envelope's
+    finished batches), and :func:`main` exits with 128 + the signal number.
 
     The termination is remembered and raised again every
     :data:`TERMINATION_REMINDER` s (SIGALRM) until :func:`main` reports it.
@@ -486,37 +567,55 @@ def _termination_in(exc: BaseException) -> Terminated | None:
     return None
 
 
+def _interrupt_code(exc: BaseException) -> int | None:
+    """The exit status of an interrupt behind ``exc`` (130 for Ctrl-C, 128 + the
+    signal for a termination), None for any other exception."""
+    if isinstance(exc, KeyboardInterrupt):
+        return EXIT_INTERRUPTED
+    term = _termination_in(exc)
+    return None if term is None else term.code
+
+
 def main(argv=None) -> int:
     global _pending
     args = _parser().parse_args(argv)
+    args.kept = None        # a command that keeps part of its work says what, for the message
     _pending = None
-    previous = signal.signal(signal.SIGTERM, _terminate)
+    previous = {sig: signal.signal(sig, _terminate) for sig in (signal.SIGTERM, signal.SIGINT)}
     previous_alarm = signal.signal(signal.SIGALRM, _remind)
     try:
         return args.func(args)
     except (ValueError, TypeError, FileNotFoundError) as exc:
-        if (term := _termination_in(exc)) is not None:
-            return _report_termination(args, term)
+        if (code := _interrupt_code(exc)) is not None:
+            return _report_termination(args, code)
         print(f"symcushion {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+        return _error_status(exc)
     except Exception as exc:
-        if (term := _termination_in(exc)) is None:
+        if (code := _interrupt_code(exc)) is None:
             raise
-        return _report_termination(args, term)
-    except Terminated as term:
-        return _report_termination(args, term)
+        return _report_termination(args, code)
+    except (Terminated, KeyboardInterrupt) as exc:
+        return _report_termination(args, _interrupt_code(exc))
     finally:
         if _pending is not None:
             signal.setitimer(signal.ITIMER_REAL, 0)
         _pending = None
-        signal.signal(signal.SIGTERM, previous)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
         signal.signal(signal.SIGALRM, previous_alarm)
 
 
-def _report_termination(args, term: Terminated) -> int:
-    print(f"symcushion {args.command}: terminated (exit {term.code}); finished results "
-          "are kept, unfinished ones removed.", file=sys.stderr)
-    return term.code
+def _error_status(exc) -> int:
+    from .results import OutputExists
+
+    return EXIT_OUTPUT_EXISTS if isinstance(exc, OutputExists) else EXIT_BAD_INPUT
+
+
+def _report_termination(args, code: int) -> int:
+    what = "interrupted" if code == EXIT_INTERRUPTED else "terminated"
+    kept = args.kept or "finished results are kept, unfinished ones removed"
+    print(f"symcushion {args.command}: {what} (exit {code}); {kept}.", file=sys.stderr)
+    return code
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -1,0 +1,156 @@
+"""What a new user must be able to trust: exit statuses, interrupted and resumed
+runs, output folders that are never silently mixed, angles in explicit units,
+``symcushion check`` on every kind of file."""
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from symcushion import cli
+from symcushion.results import RUN_FILES, OutputExists, ResultWriter, claim_output, remove_stale
+
+ROOT = Path(__file__).resolve().parents[1]
+FIG3 = ROOT / "studies" / "fig3.toml"
+#: Seconds a subprocess may take to exit after its signal.
+SIGNAL_TIMEOUT = 60
+
+
+def fig3_variant(tmp_path, name="fig3", **replace) -> Path:
+    """studies/fig3.toml with some lines replaced (``old=new`` pairs of text)."""
+    text = FIG3.read_text()
+    for old, new in replace.values():
+        assert old in text, old
+        text = text.replace(old, new)
+    path = tmp_path / f"{name}.toml"
+    path.write_text(text)
+    return path
+
+
+def simulate(*args):
+    return cli.main(["simulate", *map(str, args), "--no-plots"])
+
+
+# ---------------------------------------------------------------------------
+# output folders
+# ---------------------------------------------------------------------------
+def test_a_second_run_into_a_folder_is_refused_without_overwrite(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert simulate(FIG3, "--out", out, "--duration", "0.02") == 0
+    before = {p.name: p.read_bytes() for p in (out / "fig3").iterdir()}
+    assert simulate(FIG3, "--out", out, "--duration", "0.03") == cli.EXIT_OUTPUT_EXISTS
+    err = capsys.readouterr().err
+    assert "already holds the results of another run" in err and "`--overwrite`" in err
+    assert {p.name: p.read_bytes() for p in (out / "fig3").iterdir()} == before
+
+
+def test_two_scenes_with_one_name_do_not_overwrite_each_other(tmp_path, capsys):
+    other = fig3_variant(tmp_path, "other", v=("velocity = [0.0, 0.0, -0.5]",
+                                              "velocity = [0.0, 0.0, -0.4]"))
+    out = tmp_path / "out"
+    assert simulate(FIG3, "--out", out, "--duration", "0.02") == 0
+    assert simulate(other, "--out", out, "--duration", "0.02") == cli.EXIT_OUTPUT_EXISTS
+    assert "fig3" in capsys.readouterr().err
+    assert json.loads((out / "fig3" / "run.json").read_text())["scene_file"] == str(FIG3)
+
+
+def test_overwrite_removes_only_the_stale_files_it_owns(tmp_path):
+    out = tmp_path / "out"
+    assert simulate(FIG3, "--out", out, "--duration", "0.02") == 0
+    folder = out / "fig3"
+    (folder / "summary.png").write_text("the earlier run's figure")
+    (folder / "animation.gif").write_text("the earlier run's animation")
+    (folder / "notes.md").write_text("mine")
+    assert simulate(FIG3, "--out", out, "--duration", "0.03", "--overwrite") == 0
+    assert sorted(p.name for p in folder.iterdir()) == ["notes.md", "run.json",
+                                                        "trajectory.csv", "trajectory.npz"]
+    assert json.loads((folder / "run.json").read_text())["rows"] == 31
+
+
+def test_claim_output_and_remove_stale_touch_only_their_names(tmp_path):
+    assert claim_output(tmp_path, RUN_FILES) == []
+    (tmp_path / "run.json").write_text("{}")
+    (tmp_path / "batches").mkdir()
+    (tmp_path / "batches" / "b.npz").write_text("x")
+    (tmp_path / "foreign.txt").write_text("x")
+    with pytest.raises(OutputExists, match=r"run\.json.*`--overwrite`"):
+        claim_output(tmp_path, RUN_FILES, argument="--out")
+    assert claim_output(tmp_path, RUN_FILES, overwrite=True) == [tmp_path / "run.json"]
+    removed = remove_stale(tmp_path, ("run.json", "batches", "summary.png"), keep=["run.json"])
+    assert removed == [tmp_path / "batches"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["foreign.txt", "run.json"]
+
+
+# ---------------------------------------------------------------------------
+# errors and warnings of a run
+# ---------------------------------------------------------------------------
+def test_a_run_with_an_error_exits_non_zero_and_keeps_its_marked_results(tmp_path, capsys):
+    fast = fig3_variant(tmp_path, v=("velocity = [0.0, 0.0, -0.5]",
+                                     "velocity = [0.0, 0.0, -100.0]"))
+    out = tmp_path / "out"
+    assert simulate(fast, "--out", out, "--duration", "0.02") == cli.EXIT_ERRORS == 1
+    err = capsys.readouterr().err
+    assert "error: t = " in err and "passed through the obstacle" in err
+    meta = json.loads((out / "fig3" / "run.json").read_text())
+    assert meta["status"] == "errors" and meta["errors"] >= 2
+    assert {"pass_through", "body_inside"} <= {w["details"]["kind"] for w in meta["warnings"]
+                                               if w["severity"] == "error"}
+    assert (out / "fig3" / "trajectory.csv").is_file()
+
+
+def test_warnings_stay_warnings_and_a_clean_run_is_complete(tmp_path, monkeypatch, capsys):
+    from test_results import FakeMonitor
+
+    monkeypatch.setattr(cli, "_run_monitor", lambda scene, model: FakeMonitor())
+    assert simulate(FIG3, "--out", tmp_path / "a", "--duration", "0.02") == 0
+    meta = json.loads((tmp_path / "a" / "fig3" / "run.json").read_text())
+    assert meta["status"] == "complete" and meta["errors"] == 0 and meta["touched_down"]
+
+
+def test_a_run_that_never_touches_down_says_so(tmp_path, capsys):
+    high = fig3_variant(tmp_path, p=("position = [0.0, 0.0, 1.18]",
+                                     "position = [0.0, 0.0, 11.18]"))
+    assert simulate(high, "--out", tmp_path / "out", "--duration", "0.05") == 0
+    assert "warning: no foot touched an obstacle in the 0.05 s" in capsys.readouterr().err
+    meta = json.loads((tmp_path / "out" / "fig3" / "run.json").read_text())
+    assert meta["touched_down"] is False
+    assert [w["details"]["kind"] for w in meta["warnings"]] == ["no_touchdown"]
+    assert simulate(high, "--out", tmp_path / "out", "--duration", "0.05", "--overwrite",
+                    "--strict") == cli.EXIT_WARNINGS
+
+
+# ---------------------------------------------------------------------------
+# interrupts
+# ---------------------------------------------------------------------------
+def test_an_interrupt_inside_an_append_keeps_the_blocks_before_it(tmp_path):
+    columns = ["time_s", "body_position_z_m"]
+    writer = ResultWriter(tmp_path, columns)
+    writer.append(np.array([[0.0, 1.0], [0.1, 0.9]]))
+
+    def interrupted(data):
+        raise KeyboardInterrupt
+    writer._raw.write = interrupted             # the CSV half of the block is written
+    with pytest.raises(KeyboardInterrupt):
+        writer.append(np.array([[0.2, 0.8]]))
+    files = writer.finish({"status": "interrupted"})
+    assert files["csv"].read_text() == "time_s,body_position_z_m\n0,1\n0.10000000000000001,0.90000000000000002\n"
+    with np.load(files["npz"]) as z:
+        np.testing.assert_array_equal(z["data"], [[0.0, 1.0], [0.1, 0.9]])
+    assert json.loads(files["json"].read_text())["rows"] == 2
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(files[k].name for k in files)
+
+
+def test_keyboard_interrupt_in_any_command_is_exit_130_without_traceback(tmp_path, monkeypatch,
+                                                                         capsys):
+    def interrupted(args):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(cli, "_cmd_check", interrupted)
+    assert cli.main(["check", str(FIG3)]) == 130
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("symcushion check: interrupted (exit 130)")
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
