@@ -310,8 +310,47 @@ def _cmd_design(args):
     return 0 if res.success or res.return_status == "Maximum_Iterations_Exceeded" else 1
 
 
+def _finished_batches(out) -> int:
+    from .envelope.runner import BATCH_DIR
+
+    return len(list((out / BATCH_DIR).glob("batch_*.npz"))) if (out / BATCH_DIR).is_dir() else 0
+
+
+def _kept_batches(out, study) -> str:
+    """What an interrupted envelope keeps, and how to go on."""
+    from .envelope.runner import BATCH_DIR
+
+    kept = _finished_batches(out)
+    if not kept:
+        return "no batch had finished"
+    return (f"{kept} finished batch(es) are kept in {out / BATCH_DIR}; continue with "
+            f"`symcushion envelope {study} --resume` and the same options")
+
+
+def _claim_study_folder(out, owned, args):
+    """The output folder of an envelope study: new, resumed, or overwritten (checked first)."""
+    from .envelope.runner import BATCH_DIR
+    from .results import OutputExists, claim_output, remove_stale
+
+    interrupted = (out / BATCH_DIR).is_dir()
+    if args.resume and args.overwrite:
+        raise ValueError("give either `--resume` (continue the interrupted study in "
+                         f"{out}) or `--overwrite` (start it again), not both.")
+    if args.resume and not interrupted:
+        done = " (its cases.csv is complete)" if (out / "cases.csv").is_file() else ""
+        raise ValueError(f"`--resume`: {out} holds no interrupted study{done}; run without "
+                         "--resume (with --overwrite to run it again).")
+    if interrupted and not (args.resume or args.overwrite):
+        raise OutputExists(f"`--out` {out} holds an interrupted study "
+                           f"({_finished_batches(out)} finished batch(es)); continue it with "
+                           "`--resume`, or start again with `--overwrite`.")
+    if not args.resume and claim_output(out, owned, overwrite=args.overwrite):
+        remove_stale(out, owned)            # a study takes minutes: no stale file meanwhile
+
+
 def _cmd_envelope(args):
     from .envelope import load_study, run_envelope
+    from .envelope.runner import output_names
 
     study = load_study(args.study)
     changes = {k: v for k, v in (("n", args.n), ("seed", args.seed), ("batch", args.batch))
@@ -319,6 +358,7 @@ def _cmd_envelope(args):
     if changes:
         study = study.with_(**changes)
     out = check_out_dir(args.out if args.out is not None else Path("out") / study.name, "--out")
+    _claim_study_folder(out, output_names(study), args)
     backend = ("Dask at " + args.scheduler if args.scheduler else
                f"a local Dask cluster of {args.workers} workers" if args.dask else
                f"{args.threads or 'all'} thread(s)")
@@ -329,10 +369,14 @@ def _cmd_envelope(args):
     try:
         result = run_envelope(study, out, threads=args.threads, dask=args.dask,
                               scheduler=args.scheduler, workers=args.workers,
-                              cache_dir=args.build_dir, progress=True)
-    except RuntimeError as exc:  # a failed gcc command, with its output
-        print(f"symcushion envelope: error: {exc}", file=sys.stderr)
-        return 1
+                              cache_dir=args.build_dir, progress=True, resume=args.resume)
+    except BaseException as exc:
+        if _interrupt_code(exc) is not None:
+            args.kept = _kept_batches(out, args.study)
+        elif isinstance(exc, RuntimeError):   # a failed gcc command, with its output
+            print(f"symcushion envelope: error: {exc}", file=sys.stderr)
+            return 1
+        raise
     ps = result.p_stable()
     counts = ", ".join(f"{k} {v}" for k, v in result.counts().items() if v)
     print(f"P(stable) = {ps['p']:.3f} [{ps['low']:.3f}, {ps['high']:.3f}] "
@@ -480,6 +524,11 @@ def _add_study_commands(sub):
                    help="workers of the local Dask cluster (default: %(default)s)")
     p.add_argument("--build-dir", type=Path, default=None, metavar="DIR",
                    help="cache of compiled Functions (default: build/envelope)")
+    p.add_argument("--resume", action="store_true",
+                   help="continue an interrupted study in its output folder from its finished "
+                        "batches (same study file and options); the results equal an "
+                        "uninterrupted run's")
+    _add_overwrite(p)
     p.set_defaults(func=_cmd_envelope)
 
 

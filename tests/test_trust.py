@@ -154,3 +154,68 @@ def test_keyboard_interrupt_in_any_command_is_exit_130_without_traceback(tmp_pat
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("symcushion check: interrupted (exit 130)")
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+# ---------------------------------------------------------------------------
+# an envelope interrupted and resumed
+# ---------------------------------------------------------------------------
+#: A small, quick envelope study: the example lander with the cheap step, 600
+#: cases of 2 s in batches of 10 (one thread: ~40 ms a batch, ~2.5 s in all),
+#: long enough to be interrupted after its first batches.
+SMALL_STUDY = {"method": 'method = "robust"', "slip": 'slip = "backward"',
+               "events": 'events = "none"', "dt": "dt = 1e-3", "duration": "duration = 2.0",
+               "n": "n = 600\nbatch = 10"}
+
+
+def small_study(tmp_path) -> Path:
+    lines = []
+    for line in (ROOT / "studies" / "envelope_lander.toml").read_text().splitlines():
+        key = line.split("=")[0].strip()
+        if key in SMALL_STUDY and not (key == "method" and "sobol" in line):
+            line = SMALL_STUDY[key]
+        lines.append(line)
+    path = tmp_path / "small.toml"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def envelope(study, out, *extra):
+    return cli.main(["envelope", str(study), "--out", str(out), "--threads", "1",
+                     "--build-dir", str(out.parent / "build"), *map(str, extra)])
+
+
+def test_an_interrupted_envelope_resumes_to_the_same_cases(tmp_path, capsys):
+    study = small_study(tmp_path)
+    assert envelope(study, tmp_path / "full") == 0            # also compiles the library
+    part = tmp_path / "part"
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    proc = subprocess.Popen([sys.executable, "-m", "symcushion.cli", "envelope", str(study),
+                             "--out", str(part), "--threads", "1",
+                             "--build-dir", str(tmp_path / "build")],
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    deadline = time.monotonic() + SIGNAL_TIMEOUT
+    while not (part / "batches" / "batch_000001.npz").is_file():
+        if time.monotonic() > deadline or proc.poll() is not None:
+            proc.kill()
+            pytest.fail("the envelope never finished a batch")
+        time.sleep(0.01)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=SIGNAL_TIMEOUT)
+    err = err.decode(errors="replace")
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and "--resume" in err.strip().splitlines()[-1]
+    kept = sorted(p.name for p in (part / "batches").glob("batch_*.npz"))
+    assert 2 <= len(kept) < 60 and not (part / "cases.csv").exists()
+    # the folder is not silently taken over by a fresh run
+    assert envelope(study, part) == cli.EXIT_OUTPUT_EXISTS
+    assert "--resume" in capsys.readouterr().err
+    # another study's batches are never combined with these
+    assert envelope(study, part, "--resume", "--seed", "7") == cli.EXIT_BAD_INPUT
+    assert "another study" in capsys.readouterr().err
+    assert envelope(study, part, "--resume") == 0
+    assert (part / "cases.csv").read_bytes() == (tmp_path / "full" / "cases.csv").read_bytes()
+    assert not (part / "batches").exists()
+    assert json.loads((part / "summary.json").read_text())["timings"]["resumed_cases"] \
+        == 10 * len(kept)
+    assert envelope(study, part, "--resume") == cli.EXIT_BAD_INPUT      # nothing to resume
+    assert "complete" in capsys.readouterr().err
