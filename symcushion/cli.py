@@ -13,9 +13,15 @@ from pathlib import Path
 
 from . import __version__
 from .animate import DEFAULT_FRAMES
-from .results import check_out_dir, check_output_file
+from .results import check_out_dir, check_output_file, claim_output
 
 __all__ = ["main"]
+
+
+#: The files ``reproduce`` writes (every one is rewritten by each run).
+REPRODUCE_FILES = tuple(f"{fig}{suffix}" for fig in ("fig3", "fig4")
+                        for suffix in (".png", "_methods.png", ".csv", "_robust.csv",
+                                       "_implicit.csv")) + ("claims.md",)
 
 
 def _cmd_reproduce(args):
@@ -26,6 +32,8 @@ def _cmd_reproduce(args):
                          "figures/), not both.")
     out = "figures" if args.update_figures else (args.out or Path("out") / "reproduce")
     out = check_out_dir(out, "--out")
+    # --update-figures exists to rewrite the committed figures
+    claim_output(out, REPRODUCE_FILES, overwrite=args.overwrite or args.update_figures)
     reproduce(scene_dir=args.scenes, out_dir=out, duration=args.duration)
     return 0
 
@@ -266,6 +274,7 @@ def _cmd_optimise(args):
     _set_max_iter(study.ipopt, args.max_iter)
     out = args.out if args.out is not None else Path("out") / f"{study.name}.json"
     check_output_file(out, "--out")                    # before building and solving
+    claim_output(Path(out).parent, [Path(out).name], overwrite=args.overwrite)
     pb = study.problem
     print(f"{study.name}: {len(pb.scenarios)} scenario(s), {pb.n_variables} design variables, "
           f"{pb.lbg.size} constraints, objective {pb.objective_kind} (built in "
@@ -279,7 +288,13 @@ def _cmd_optimise(args):
     return 0 if result.success and result.evaluation.feasible else 1
 
 
+#: What ``design`` writes into its folder (``symcushion.robust.report``).
+DESIGN_FILES = ("result.json", "scenarios.csv", "before", "after", "before_after.png",
+                "curves.png")
+
+
 def _cmd_design(args):
+    from .results import remove_stale
     from .robust.study import load_robust_study, run_robust_study
 
     study = load_robust_study(args.study)
@@ -289,6 +304,8 @@ def _cmd_design(args):
             raise ValueError(f"`--n` must be a positive integer, got {args.n}.")
         study.envelope = study.envelope.with_(n=args.n)
     out = check_out_dir(args.out if args.out is not None else Path("out") / study.name, "--out")
+    if claim_output(out, DESIGN_FILES, overwrite=args.overwrite):
+        remove_stale(out, DESIGN_FILES)        # a design takes minutes: no stale file meanwhile
     client = None
     if args.scheduler:
         try:
@@ -417,6 +434,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="write into figures/, the figures committed to the repository")
     p.add_argument("--duration", type=float, default=None, metavar="SECONDS",
                    help="simulated time of each run in s (default: the scenes' own)")
+    _add_overwrite(p)
     p.set_defaults(func=_cmd_reproduce)
 
     p = sub.add_parser("simulate", help="simulate a scene file: trajectory, figures, animation",
@@ -472,7 +490,7 @@ def _parser() -> argparse.ArgumentParser:
 
 def _add_overwrite(p):
     p.add_argument("--overwrite", action="store_true",
-                   help="replace the results of an earlier run in the output folder (its stale "
+                   help="replace the results of an earlier run at the output path (its stale "
                         f"files are removed; without this the command stops with status "
                         f"{EXIT_OUTPUT_EXISTS})")
 
@@ -500,6 +518,7 @@ def _add_study_commands(sub):
                    help="result JSON (default: out/<study name>.json)")
     p.add_argument("--max-iter", type=int, default=None,
                    help="override Ipopt's max_iter (default: the study's)")
+    _add_overwrite(p)
     p.set_defaults(func=_cmd_optimise)
 
     p = sub.add_parser("envelope", help="Monte Carlo touchdown stability envelope of a study "
@@ -553,6 +572,7 @@ def _add_design_command(sub):
                    help="gradient check at the start and at the optimum")
     p.add_argument("--build-dir", type=Path, default=None, metavar="DIR",
                    help="cache of compiled Functions (default: build/robust, build/envelope)")
+    _add_overwrite(p)
     p.set_defaults(func=_cmd_design)
 
 

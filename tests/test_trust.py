@@ -86,6 +86,26 @@ def test_claim_output_and_remove_stale_touch_only_their_names(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["foreign.txt", "run.json"]
 
 
+@pytest.mark.parametrize("command, out, result", (
+    (["optimise", ROOT / "studies" / "absorber_1d.toml"], "design.json", "design.json"),
+    (["design", ROOT / "studies" / "design_for_envelope.toml"], "d", "d/curves.png"),
+    (["reproduce", "--scenes", ROOT / "studies"], "r", "r/claims.md"),
+    (["envelope", ROOT / "studies" / "envelope_lander.toml"], "e", "e/summary.json")))
+def test_every_study_command_refuses_another_runs_results_before_the_work(
+        tmp_path, monkeypatch, capsys, command, out, result):
+    def no_work(*args, **kwargs):
+        raise AssertionError("the work started before the output was checked")
+    for name in ("robust.study.run_robust_study", "reproduce.reproduce",
+                 "envelope.run_envelope"):
+        monkeypatch.setattr(f"symcushion.{name}", no_work)
+    (tmp_path / result).parent.mkdir(parents=True, exist_ok=True)
+    (tmp_path / result).write_text("an earlier run's result")
+    code = cli.main([*map(str, command), "--out", str(tmp_path / out)])
+    assert code == cli.EXIT_OUTPUT_EXISTS, capsys.readouterr().err
+    assert "`--overwrite`" in capsys.readouterr().err
+    assert (tmp_path / result).read_text() == "an earlier run's result"
+
+
 # ---------------------------------------------------------------------------
 # errors and warnings of a run
 # ---------------------------------------------------------------------------
