@@ -227,20 +227,35 @@ def _cmd_plot(args):
 
 
 def _cmd_check(args):
-    from .checks import check_scene
-    from .scene import load_scene
+    from .checks import check_file
+    from .scene import read_toml
 
+    stdin = str(args.scene) == "-"
+    name = "<stdin>" if stdin else str(args.scene)
     try:
-        scene = load_scene(args.scene)
+        data = _read_stdin_toml() if stdin else read_toml(args.scene, "scene or study")
+        kind, checked = check_file(data, name, base_dir="." if stdin else args.scene.parent)
     except (ValueError, FileNotFoundError) as exc:    # SceneError lists every bad field
         print(f"symcushion check: error: {exc}", file=sys.stderr)
-        return 1
-    findings = check_scene(scene)
-    for f in findings:
-        print(f"{args.scene}: {f.severity}: {f.message}")
+        return EXIT_ERRORS
+    findings = []
+    for label, found in checked:
+        where = name if len(checked) == 1 else f"{name} ({label})"
+        for f in found:
+            print(f"{where}: {f.severity}: {f.message}")
+        findings += found
     errors = sum(f.severity == "error" for f in findings)
-    print(f"{args.scene}: {errors} error(s), {len(findings) - errors} warning(s)")
-    return 1 if errors or (args.strict and findings) else 0
+    print(f"{name}: {kind} file, {errors} error(s), {len(findings) - errors} warning(s)")
+    return EXIT_ERRORS if errors or (args.strict and findings) else 0
+
+
+def _read_stdin_toml() -> dict:
+    from .scene import tomllib
+
+    try:
+        return tomllib.loads(sys.stdin.read())
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"<stdin>: not valid TOML: {exc}") from None
 
 
 def _cmd_codegen(args):
@@ -465,12 +480,15 @@ def _parser() -> argparse.ArgumentParser:
     _add_overwrite(p)
     p.set_defaults(func=_cmd_simulate)
 
-    p = sub.add_parser("check", help="check a scene file (every field and the physics) "
-                       "without simulating",
-                       description="Check a scene TOML file: every field, and the physical "
-                       "sanity checks of docs/checks.md, without simulating. Exit status 0 when "
+    p = sub.add_parser("check", help="check a scene or study file (every field and the "
+                       "physics) without simulating",
+                       description="Check a scene, envelope, design or optimise study TOML "
+                       "file: every field, and the physical sanity checks of docs/checks.md "
+                       "for every scene it describes, without simulating. Exit status 0 when "
                        "clean, 1 on errors (and on warnings with --strict).")
-    p.add_argument("scene", type=Path, help="scene TOML file (docs/scenes.md)")
+    p.add_argument("scene", type=Path, metavar="FILE",
+                   help="scene (docs/scenes.md) or study TOML file (docs/envelope.md, "
+                        "docs/optimise.md); - reads standard input")
     p.add_argument("--strict", action="store_true", help="exit 1 on warnings too")
     p.set_defaults(func=_cmd_check)
 

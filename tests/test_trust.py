@@ -239,3 +239,121 @@ def test_an_interrupted_envelope_resumes_to_the_same_cases(tmp_path, capsys):
         == 10 * len(kept)
     assert envelope(study, part, "--resume") == cli.EXIT_BAD_INPUT      # nothing to resume
     assert "complete" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------------------
+# angles
+# ---------------------------------------------------------------------------
+def _slope_scene():
+    from symcushion.scene import read_toml
+
+    return read_toml(ROOT / "studies" / "lander_slope.toml")
+
+
+def _load(data, source="lander.toml"):
+    from symcushion.scene import scene_from_dict
+
+    return scene_from_dict(data, source)
+
+
+def test_angle_fields_take_degrees_with_deg_bit_for_bit():
+    data = _slope_scene()
+    base = _load(data)
+    ob, legs = data["obstacle"][0], data["legs"]
+    ob["angle_deg"] = 10
+    legs["azimuth0_deg"] = 45.0
+    del ob["angle"], legs["azimuth0"]
+    scene = _load(data)
+    assert np.array_equal(scene.obstacles[0].n, base.obstacles[0].n)
+    for a, b in zip(scene.legs, base.legs):
+        assert np.array_equal(a.hinge, b.hinge)
+
+
+@pytest.mark.parametrize("table, key, value", (("obstacle", "angle", 12.0),
+                                               ("obstacle", "angle", -2),
+                                               ("legs", "azimuth0", 45)))
+def test_implausible_radians_name_the_field_value_and_the_deg_field(table, key, value):
+    from symcushion.scene import SceneError
+
+    data = _slope_scene()
+    (data[table][0] if table == "obstacle" else data[table])[key] = value
+    with pytest.raises(SceneError) as err:
+        _load(data)
+    where = f"obstacle[0].{key}" if table == "obstacle" else f"legs.{key}"
+    assert f"`{where}` = {value!r}" in str(err.value)
+    assert f"`{key}_deg = {value!r}`" in str(err.value) and "radians" in str(err.value)
+
+
+def test_an_angle_in_both_units_is_an_error_reported_with_the_others():
+    from symcushion.scene import SceneError
+
+    data = _slope_scene()
+    data["obstacle"][0]["angle_deg"] = 10
+    data["legs"]["azimuth0"] = 90
+    with pytest.raises(SceneError) as err:
+        _load(data)
+    assert len(err.value.problems) == 2
+    assert "give either `obstacle[0].angle` (radians) or `obstacle[0].angle_deg`" in str(err.value)
+
+
+def test_study_limits_take_either_unit_and_refuse_degrees_as_radians():
+    import symcushion.envelope as ev
+    from symcushion.scene import read_toml
+
+    raw = read_toml(ROOT / "studies" / "envelope_lander.toml")
+    limits = raw["limits"]
+    assert ev.study_from_dict(raw, "s.toml").limits.tilt_deg == 35.0
+    del limits["tilt_deg"], limits["beta"]
+    limits.update(tilt=0.5, beta_deg=3.0)
+    got = ev.study_from_dict(raw, "s.toml").limits
+    assert got.tilt_deg == pytest.approx(np.degrees(0.5)) and got.beta == pytest.approx(np.radians(3))
+    limits["tilt"] = 35.0
+    with pytest.raises(ValueError, match=r"`limits.tilt` = 35.0 is not plausible in radians.*"
+                                         r"`tilt_deg = 35.0`"):
+        ev.study_from_dict(raw, "s.toml")
+
+
+def test_the_design_tilt_limit_takes_degrees_too():
+    from symcushion.optimise.study import study_from_dict
+    from symcushion.scene import read_toml
+
+    raw = read_toml(ROOT / "studies" / "absorber_1d.toml")
+    raw.setdefault("limits", {})["tilt_deg"] = 30.0
+    assert study_from_dict(raw, "a.toml").problem.limits.tilt == pytest.approx(np.radians(30))
+    raw["limits"] = {"tilt": 30.0}
+    with pytest.raises(ValueError, match="`tilt_deg = 30.0`"):
+        study_from_dict(raw, "a.toml")
+
+
+# ---------------------------------------------------------------------------
+# symcushion check on every kind of file
+# ---------------------------------------------------------------------------
+@pytest.mark.parametrize("name, kind", (("envelope_lander.toml", "envelope"),
+                                        ("design_for_envelope.toml", "design"),
+                                        ("absorber_1d.toml", "optimise"),
+                                        ("fig3.toml", "scene")))
+def test_check_takes_scene_and_study_files(name, kind, capsys):
+    assert cli.main(["check", str(ROOT / "studies" / name)]) == 0
+    assert capsys.readouterr().out.strip().endswith(f"{kind} file, 0 error(s), 0 warning(s)")
+
+
+def test_check_reports_every_bad_scene_field_of_a_study_at_once(tmp_path, capsys):
+    text = (ROOT / "studies" / "envelope_lander.toml").read_text()
+    text = text.replace("mass = 150.0", "mass = -150.0").replace("[legs]\n", "[legs]\nradus = 1\n")
+    bad = tmp_path / "bad_study.toml"
+    bad.write_text(text)
+    assert cli.main(["check", str(bad)]) == cli.EXIT_ERRORS
+    err = capsys.readouterr().err
+    assert "2 problems" in err and "`body.mass`" in err and "did you mean 'radius'" in err
+
+
+def test_check_reads_standard_input(monkeypatch, capsys):
+    import io
+
+    monkeypatch.setattr(sys, "stdin", io.StringIO(FIG3.read_text()))
+    assert cli.main(["check", "-"]) == 0
+    assert capsys.readouterr().out.strip() == "<stdin>: scene file, 0 error(s), 0 warning(s)"
+    monkeypatch.setattr(sys, "stdin", io.StringIO("[scene]\nmu = -1\n"))
+    assert cli.main(["check", "-"]) == cli.EXIT_ERRORS
+    err = capsys.readouterr().err
+    assert err.startswith("symcushion check: error: <stdin>: 4 problems") and "`scene.mu`" in err
