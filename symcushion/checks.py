@@ -360,7 +360,9 @@ def _check_time_step(scene, model, x0):
         out.append(Finding("dt_unstable", f"`scene.dt` = {scene.dt:g} s is {ratio:.3g} times "
                            f"the stable step 2/ω_max = {limit:.3g} s of the stiffest leg mode "
                            "(feet held): the explicit body update may diverge — use dt ≤ "
-                           f"{limit / 2:.3g} s, or simulate with adaptive=True, stability=True.",
+                           f"{limit / 2:.3g} s (command line: --dt {limit / 2:.3g}), or cap "
+                           "each step at the limit (command line: --stability; Python: "
+                           "simulate(..., adaptive=True, stability=True)).",
                            severity, value=ratio, field="scene.dt"))
     return out
 

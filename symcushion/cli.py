@@ -91,7 +91,8 @@ def _cmd_simulate(args):
                             "the steps that need them)" if size["gated"] else ""), flush=True)
     meta = {"scene": read_toml(args.scene), "scene_file": str(args.scene),
             "overrides": overrides, "scene_summary": _summary(scene),
-            "versions": versions(), "adaptive": args.adaptive}
+            "versions": versions(), "adaptive": args.adaptive or args.stability,
+            "stability": args.stability}
     with ResultWriter(directory, trajectory_columns(len(scene.legs))) as writer:
         try:
             traj = _simulate_reporting(scene, model, args, writer)
@@ -176,7 +177,8 @@ def _simulate_reporting(scene, model, args, writer):
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", PhysicsWarning)
-        traj = simulate(scene, model=model, adaptive=args.adaptive, progress=True,
+        traj = simulate(scene, model=model, adaptive=args.adaptive or args.stability,
+                        stability=args.stability, progress=True,
                         monitor=_run_monitor(scene, model), sink=writer)
     for w in caught:
         if not issubclass(w.category, PhysicsWarning):
@@ -471,6 +473,9 @@ def _parser() -> argparse.ArgumentParser:
                         "(default: the scene's)")
     p.add_argument("--adaptive", action="store_true",
                    help="halve dt where the paper's step criterion 1 - n_k.n_k+1 < eps fails")
+    p.add_argument("--stability", action="store_true",
+                   help="cap each step at the explicit stability limit of the legs (implies "
+                        "--adaptive; for a dt above the stable step)")
     p.add_argument("--no-plots", action="store_true",
                    help="write no summary.png and no animation.gif")
     p.add_argument("--frames", type=_positive_int, default=DEFAULT_FRAMES, metavar="N",

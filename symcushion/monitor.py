@@ -157,7 +157,10 @@ class RunMonitor:
             self._add(out, "energy_growth", "warning", t[i], f"the energy grew by "
                       f"{gain[i]:.3g} J by t = {t[i]:.6g} s, more than the elements can supply "
                       f"({self._allowed:.3g} J with tolerance); the step is unstable or the "
-                      "contact adds energy — reduce `dt`.", value=gain[i])
+                      f"contact adds energy — reduce `dt` (command line: --dt "
+                      f"{self.scene.dt / 4:.3g}) or cap each step at the stability limit "
+                      "(command line: --stability; Python: simulate(..., adaptive=True, "
+                      "stability=True)).", value=gain[i])
         return out
 
     def _check_geometry(self, out, t, X):

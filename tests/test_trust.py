@@ -357,3 +357,33 @@ def test_check_reads_standard_input(monkeypatch, capsys):
     assert cli.main(["check", "-"]) == cli.EXIT_ERRORS
     err = capsys.readouterr().err
     assert err.startswith("symcushion check: error: <stdin>: 4 problems") and "`scene.mu`" in err
+
+
+# ---------------------------------------------------------------------------
+# what a warning suggests is what the command line offers
+# ---------------------------------------------------------------------------
+def test_an_unstable_step_suggests_the_cli_options_and_stability_runs(tmp_path, capsys):
+    args = ("--out", tmp_path, "--dt", "0.005", "--duration", "0.05")
+    assert simulate(FIG3, *args) == 0
+    err = capsys.readouterr().err
+    assert "--dt 0.00143" in err and "--stability" in err
+    assert simulate(FIG3, *args, "--overwrite", "--stability") == 0
+    meta = json.loads((tmp_path / "fig3" / "run.json").read_text())
+    assert meta["stability"] and meta["stability_capped"] > 0 and meta["warnings"] == []
+
+
+def test_the_energy_growth_message_names_one_time_and_the_cli_options():
+    from symcushion.layout import state_layout
+    from symcushion.monitor import RunMonitor
+    from symcushion.scene import load_scene
+    from symcushion.touchdown import initial_state
+
+    scene = load_scene(FIG3)
+    x = initial_state(scene)
+    xl = state_layout(len(scene.legs))
+    X = np.column_stack([x, x])
+    X[xl.slice("velocity"), 1] = [0.0, 0.0, 50.0]          # 62.5 kJ from nowhere
+    found = RunMonitor(scene).check(np.array([0.001, 0.002]), X, np.zeros((0, 2)))
+    (energy,) = [f for f in found if f.kind == "energy_growth"]
+    assert energy.time == 0.002 and energy.message.count("t = ") == 1
+    assert "--dt" in energy.message and "--stability" in energy.message
