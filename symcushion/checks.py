@@ -10,6 +10,9 @@ explicit stability limit. This module owns those checks:
 * :func:`preflight` — raises :class:`~symcushion.validation.SceneError` on
   errors (and on warnings with ``strict``), else emits each warning as a
   :class:`PhysicsWarning`.
+* :func:`check_file` — the checks of a parsed scene, envelope, design or
+  optimise study file (``symcushion check``): its fields, then every scene
+  it describes at the state it starts from.
 * the checks *during* a run live in ``symcushion.monitor``
   (:class:`~symcushion.monitor.RunMonitor`, also importable from here); they
   share :class:`Finding` and the geometry helpers of this module.
@@ -33,7 +36,7 @@ from .stability import stable_dt
 from .touchdown import build_model, initial_state
 from .validation import SceneError
 
-__all__ = ["Finding", "PhysicsWarning", "check_scene", "preflight",
+__all__ = ["Finding", "PhysicsWarning", "check_scene", "preflight", "check_file", "file_kind",
            "START_TOLERANCE", "BODY_TOLERANCE", "REACH_FRACTIONS", "SAMPLE_DIRECTIONS",
            "FD_STEP", "GRADIENT_TOLERANCE", "FAST_STEP_FRACTION", "DT_ERROR_RATIO"]
 
@@ -357,7 +360,9 @@ def _check_time_step(scene, model, x0):
         out.append(Finding("dt_unstable", f"`scene.dt` = {scene.dt:g} s is {ratio:.3g} times "
                            f"the stable step 2/ω_max = {limit:.3g} s of the stiffest leg mode "
                            "(feet held): the explicit body update may diverge — use dt ≤ "
-                           f"{limit / 2:.3g} s, or simulate with adaptive=True, stability=True.",
+                           f"{limit / 2:.3g} s (command line: --dt {limit / 2:.3g}), or cap "
+                           "each step at the limit (command line: --stability; Python: "
+                           "simulate(..., adaptive=True, stability=True)).",
                            severity, value=ratio, field="scene.dt"))
     return out
 
@@ -401,3 +406,72 @@ def __getattr__(name):
         from .monitor import RunMonitor
         return RunMonitor
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def file_kind(data: dict) -> str:
+    """What a parsed TOML file is, from its tables: ``"scene"``, ``"envelope"``
+    (``[ranges]``), ``"design"`` (``[ranges]`` and ``[design]``: design for the
+    envelope) or ``"optimise"`` (``[design]`` alone)."""
+    if not isinstance(data, dict):
+        return "scene"
+    if "ranges" in data:
+        return "design" if "design" in data else "envelope"
+    return "optimise" if "design" in data else "scene"
+
+
+def check_file(data: dict, source: str, base_dir=".") -> tuple:
+    """Check a parsed scene or study file: its fields, then the physics of its scenes.
+
+    Parameters
+    ----------
+    data : dict
+        The parsed TOML file.
+    source : str
+        Its name, for messages (``"<stdin>"`` for standard input).
+    base_dir : str or Path
+        Where an optimise study's ``study.scene`` file is looked up.
+
+    Returns
+    -------
+    kind : str
+        :func:`file_kind`.
+    checked : list of (str, list of Finding)
+        Per scene of the file (an optimise study's scenarios; an envelope or
+        design study's scene placed for its median conditions), a label and
+        its findings.
+
+    Raises
+    ------
+    ValueError
+        A bad field (a :class:`SceneError` lists every bad field of a scene's
+        tables at once).
+    """
+    kind = file_kind(data)
+    if kind == "scene":
+        from .scene import scene_from_dict
+
+        return kind, [("scene", check_scene(scene_from_dict(data, source)))]
+    if kind == "optimise":
+        from .optimise.study import study_from_dict
+
+        problem = study_from_dict(data, source, base_dir=base_dir).problem
+        return kind, [(f"scenario {sc.name}", check_scene(sc.scene, x0=sc.x0))
+                      for sc in problem.scenarios]
+    if kind == "design":
+        from .robust.study import robust_study_from_dict
+
+        study = robust_study_from_dict(data, source).envelope
+    else:
+        from .envelope.study import study_from_dict
+
+        study = study_from_dict(data, source)
+    return kind, [("median touchdown", _check_median_case(study))]
+
+
+def _check_median_case(study) -> list:
+    """The findings of an envelope study's scene at the median of every condition."""
+    from .envelope.cases import initial_states
+
+    median = {name: r.transform(np.array([0.5])) for name, r in study.ranges.items()}
+    x0, _ = initial_states(study, median)
+    return check_scene(study.scene, x0=x0[:, 0])

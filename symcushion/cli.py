@@ -13,9 +13,15 @@ from pathlib import Path
 
 from . import __version__
 from .animate import DEFAULT_FRAMES
-from .results import check_out_dir, check_output_file
+from .results import check_out_dir, check_output_file, claim_output
 
 __all__ = ["main"]
+
+
+#: The files ``reproduce`` writes (every one is rewritten by each run).
+REPRODUCE_FILES = tuple(f"{fig}{suffix}" for fig in ("fig3", "fig4")
+                        for suffix in (".png", "_methods.png", ".csv", "_robust.csv",
+                                       "_implicit.csv")) + ("claims.md",)
 
 
 def _cmd_reproduce(args):
@@ -26,12 +32,25 @@ def _cmd_reproduce(args):
                          "figures/), not both.")
     out = "figures" if args.update_figures else (args.out or Path("out") / "reproduce")
     out = check_out_dir(out, "--out")
+    # --update-figures exists to rewrite the committed figures
+    claim_output(out, REPRODUCE_FILES, overwrite=args.overwrite or args.update_figures)
     reproduce(scene_dir=args.scenes, out_dir=out, duration=args.duration)
     return 0
 
 
-#: Exit status of a run that finished with warnings under --strict.
+#: Exit statuses (docs/checks.md, "Exit statuses"). A command that works
+#: returns 0; bad input is 2.
+#: A run that gave a finding of severity error (its results are kept and
+#: run.json says ``"status": "errors"``); ``check``: the file has errors.
+EXIT_ERRORS = 1
+#: Bad input: a field, an option, a path (the one-line message names it).
+EXIT_BAD_INPUT = 2
+#: A run that finished with warnings under --strict.
 EXIT_WARNINGS = 3
+#: The output folder holds another run's results and --overwrite was not given.
+EXIT_OUTPUT_EXISTS = 4
+#: Ctrl-C (SIGINT): 128 + 2, as a shell reports it.
+EXIT_INTERRUPTED = 128 + signal.SIGINT
 
 
 def _scene_and_overrides(args):
@@ -56,37 +75,98 @@ def _run_monitor(scene, model):
 
 
 def _cmd_simulate(args):
-    from .results import ResultWriter, result_dir, trajectory_columns, versions
+    from .results import (RUN_FILES, ResultWriter, claim_output, remove_stale, result_dir,
+                          trajectory_columns, versions)
     from .scene import read_toml
     from .touchdown import build_model
 
     scene, overrides = _scene_and_overrides(args)
     directory = result_dir(args.out, scene.name)        # checked before any work
+    claim_output(directory, RUN_FILES, overwrite=args.overwrite)
     model = build_model(scene)
     size = model.graph_size()
     print(f"{scene.name}: {len(scene.legs)} legs, method {scene.method}, μ = {scene.mu:g}, "
           f"{scene.steps} steps of {scene.dt:g} s; step graph {size['instructions']} "
           "instructions" + (f" (+ {size['gated']} in the stroke lock's calls, run only in "
                             "the steps that need them)" if size["gated"] else ""), flush=True)
+    meta = {"scene": read_toml(args.scene), "scene_file": str(args.scene),
+            "overrides": overrides, "scene_summary": _summary(scene),
+            "versions": versions(), "adaptive": args.adaptive or args.stability,
+            "stability": args.stability}
     with ResultWriter(directory, trajectory_columns(len(scene.legs))) as writer:
-        traj = _simulate_reporting(scene, model, args, writer)
-        meta = {"scene": read_toml(args.scene), "scene_file": str(args.scene),
-                "overrides": overrides, "scene_summary": _summary(scene),
-                "versions": versions(), "adaptive": args.adaptive, **traj.info}
+        try:
+            traj = _simulate_reporting(scene, model, args, writer)
+        except BaseException as exc:
+            if _interrupt_code(exc) is not None:
+                args.kept = _keep_interrupted(writer, meta, exc)
+            raise
+        _note_no_touchdown(traj)
+        errors = _errors(traj.info["warnings"])
+        meta.update(traj.info, status="errors" if errors else "complete", errors=len(errors))
         traj.info.update(scene_summary=meta["scene_summary"])
         files = writer.finish(meta)
+    remove_stale(directory, RUN_FILES, keep=files.values())
     print(f"wrote {files['csv']}, {files['npz'].name}, {files['json'].name} "
           f"({traj.info['steps']} steps, {traj.info['wall_seconds']:.2f} s wall, step "
           f"criterion max {traj.info['criterion_max']:.2e}, halvings {traj.info['halvings']}, "
           f"{len(traj.info['events'])} events)")
     if not args.no_plots:
         _figures(traj, scene, directory, args.frames)
-    if traj.info["warnings"]:
-        print(f"{len(traj.info['warnings'])} warning(s), listed in {files['json']}",
-              file=sys.stderr)
-        if args.strict:
-            return EXIT_WARNINGS
-    return 0
+    return _run_status(traj.info["warnings"], files["json"], args.strict)
+
+
+def _errors(findings) -> list:
+    return [w for w in findings if w.get("severity") == "error"]
+
+
+def _run_status(findings, where, strict) -> int:
+    """Report a finished run's findings; its exit status (errors beat warnings)."""
+    errors = _errors(findings)
+    for e in errors:                       # the run printed them as it went; the verdict last
+        print(f"error: t = {e['time']:.4g} s: {e['message']}", file=sys.stderr)
+    if findings:
+        print(f"{len(errors)} error(s), {len(findings) - len(errors)} warning(s), listed in "
+              f"{where}", file=sys.stderr)
+    if errors:
+        print(f"the run gave {len(errors)} error(s): its results are kept, marked "
+              f"\"status\": \"errors\" in {where}; exit status {EXIT_ERRORS}.", file=sys.stderr)
+        return EXIT_ERRORS
+    return EXIT_WARNINGS if findings and strict else 0
+
+
+def _note_no_touchdown(traj):
+    """A run that never touched down says so: a warning line and a run.json entry."""
+    from .monitor import no_touchdown
+
+    finding = no_touchdown(traj)
+    if finding is not None:
+        print(f"warning: {finding.message}", file=sys.stderr)
+        traj.info["warnings"].append({"time": finding.time, "kind": "warning",
+                                      "severity": finding.severity, "message": finding.message,
+                                      "details": finding.to_dict()})
+    traj.info["touched_down"] = finding is None
+
+
+def _keep_interrupted(writer, meta, exc) -> str | None:
+    """Write the rows of the finished blocks of an interrupted run, marked in run.json.
+
+    Returns a note of what was kept for the one-line exit message (None if
+    no block had finished: the writer's exit then removes its temporary files).
+    """
+    from .results import RUN_FILES, remove_stale
+
+    if writer.rows < 2:                         # the initial row only
+        return None
+    so_far = getattr(exc, "run_so_far", {})
+    t_end = writer.last_time
+    done = [e for e in so_far.get("events", []) if e["time"] <= t_end]
+    findings = [w for w in so_far.get("warnings", []) if w["time"] <= t_end]
+    files = writer.finish(dict(meta, status="interrupted", t_end=t_end, events=done,
+                               warnings=findings, errors=len(_errors(findings)),
+                               events_dropped=so_far.get("events_dropped", 0)))
+    remove_stale(writer.directory, RUN_FILES, keep=files.values())
+    return (f"the run up to t = {t_end:.6g} s is kept in {writer.directory} "
+            "(run.json: \"status\": \"interrupted\")")
 
 
 def _simulate_reporting(scene, model, args, writer):
@@ -97,7 +177,8 @@ def _simulate_reporting(scene, model, args, writer):
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", PhysicsWarning)
-        traj = simulate(scene, model=model, adaptive=args.adaptive, progress=True,
+        traj = simulate(scene, model=model, adaptive=args.adaptive or args.stability,
+                        stability=args.stability, progress=True,
                         monitor=_run_monitor(scene, model), sink=writer)
     for w in caught:
         if not issubclass(w.category, PhysicsWarning):
@@ -148,20 +229,35 @@ def _cmd_plot(args):
 
 
 def _cmd_check(args):
-    from .checks import check_scene
-    from .scene import load_scene
+    from .checks import check_file
+    from .scene import read_toml
 
+    stdin = str(args.scene) == "-"
+    name = "<stdin>" if stdin else str(args.scene)
     try:
-        scene = load_scene(args.scene)
+        data = _read_stdin_toml() if stdin else read_toml(args.scene, "scene or study")
+        kind, checked = check_file(data, name, base_dir="." if stdin else args.scene.parent)
     except (ValueError, FileNotFoundError) as exc:    # SceneError lists every bad field
         print(f"symcushion check: error: {exc}", file=sys.stderr)
-        return 1
-    findings = check_scene(scene)
-    for f in findings:
-        print(f"{args.scene}: {f.severity}: {f.message}")
+        return EXIT_ERRORS
+    findings = []
+    for label, found in checked:
+        where = name if len(checked) == 1 else f"{name} ({label})"
+        for f in found:
+            print(f"{where}: {f.severity}: {f.message}")
+        findings += found
     errors = sum(f.severity == "error" for f in findings)
-    print(f"{args.scene}: {errors} error(s), {len(findings) - errors} warning(s)")
-    return 1 if errors or (args.strict and findings) else 0
+    print(f"{name}: {kind} file, {errors} error(s), {len(findings) - errors} warning(s)")
+    return EXIT_ERRORS if errors or (args.strict and findings) else 0
+
+
+def _read_stdin_toml() -> dict:
+    from .scene import tomllib
+
+    try:
+        return tomllib.loads(sys.stdin.read())
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"<stdin>: not valid TOML: {exc}") from None
 
 
 def _cmd_codegen(args):
@@ -195,6 +291,7 @@ def _cmd_optimise(args):
     _set_max_iter(study.ipopt, args.max_iter)
     out = args.out if args.out is not None else Path("out") / f"{study.name}.json"
     check_output_file(out, "--out")                    # before building and solving
+    claim_output(Path(out).parent, [Path(out).name], overwrite=args.overwrite)
     pb = study.problem
     print(f"{study.name}: {len(pb.scenarios)} scenario(s), {pb.n_variables} design variables, "
           f"{pb.lbg.size} constraints, objective {pb.objective_kind} (built in "
@@ -208,7 +305,13 @@ def _cmd_optimise(args):
     return 0 if result.success and result.evaluation.feasible else 1
 
 
+#: What ``design`` writes into its folder (``symcushion.robust.report``).
+DESIGN_FILES = ("result.json", "scenarios.csv", "before", "after", "before_after.png",
+                "curves.png")
+
+
 def _cmd_design(args):
+    from .results import remove_stale
     from .robust.study import load_robust_study, run_robust_study
 
     study = load_robust_study(args.study)
@@ -218,6 +321,8 @@ def _cmd_design(args):
             raise ValueError(f"`--n` must be a positive integer, got {args.n}.")
         study.envelope = study.envelope.with_(n=args.n)
     out = check_out_dir(args.out if args.out is not None else Path("out") / study.name, "--out")
+    if claim_output(out, DESIGN_FILES, overwrite=args.overwrite):
+        remove_stale(out, DESIGN_FILES)        # a design takes minutes: no stale file meanwhile
     client = None
     if args.scheduler:
         try:
@@ -239,8 +344,47 @@ def _cmd_design(args):
     return 0 if res.success or res.return_status == "Maximum_Iterations_Exceeded" else 1
 
 
+def _finished_batches(out) -> int:
+    from .envelope.runner import BATCH_DIR
+
+    return len(list((out / BATCH_DIR).glob("batch_*.npz"))) if (out / BATCH_DIR).is_dir() else 0
+
+
+def _kept_batches(out, study) -> str:
+    """What an interrupted envelope keeps, and how to go on."""
+    from .envelope.runner import BATCH_DIR
+
+    kept = _finished_batches(out)
+    if not kept:
+        return "no batch had finished"
+    return (f"{kept} finished batch(es) are kept in {out / BATCH_DIR}; continue with "
+            f"`symcushion envelope {study} --resume` and the same options")
+
+
+def _claim_study_folder(out, owned, args):
+    """The output folder of an envelope study: new, resumed, or overwritten (checked first)."""
+    from .envelope.runner import BATCH_DIR
+    from .results import OutputExists, claim_output, remove_stale
+
+    interrupted = (out / BATCH_DIR).is_dir()
+    if args.resume and args.overwrite:
+        raise ValueError("give either `--resume` (continue the interrupted study in "
+                         f"{out}) or `--overwrite` (start it again), not both.")
+    if args.resume and not interrupted:
+        done = " (its cases.csv is complete)" if (out / "cases.csv").is_file() else ""
+        raise ValueError(f"`--resume`: {out} holds no interrupted study{done}; run without "
+                         "--resume (with --overwrite to run it again).")
+    if interrupted and not (args.resume or args.overwrite):
+        raise OutputExists(f"`--out` {out} holds an interrupted study "
+                           f"({_finished_batches(out)} finished batch(es)); continue it with "
+                           "`--resume`, or start again with `--overwrite`.")
+    if not args.resume and claim_output(out, owned, overwrite=args.overwrite):
+        remove_stale(out, owned)            # a study takes minutes: no stale file meanwhile
+
+
 def _cmd_envelope(args):
     from .envelope import load_study, run_envelope
+    from .envelope.runner import output_names
 
     study = load_study(args.study)
     changes = {k: v for k, v in (("n", args.n), ("seed", args.seed), ("batch", args.batch))
@@ -248,6 +392,7 @@ def _cmd_envelope(args):
     if changes:
         study = study.with_(**changes)
     out = check_out_dir(args.out if args.out is not None else Path("out") / study.name, "--out")
+    _claim_study_folder(out, output_names(study), args)
     backend = ("Dask at " + args.scheduler if args.scheduler else
                f"a local Dask cluster of {args.workers} workers" if args.dask else
                f"{args.threads or 'all'} thread(s)")
@@ -258,10 +403,14 @@ def _cmd_envelope(args):
     try:
         result = run_envelope(study, out, threads=args.threads, dask=args.dask,
                               scheduler=args.scheduler, workers=args.workers,
-                              cache_dir=args.build_dir, progress=True)
-    except RuntimeError as exc:  # a failed gcc command, with its output
-        print(f"symcushion envelope: error: {exc}", file=sys.stderr)
-        return 1
+                              cache_dir=args.build_dir, progress=True, resume=args.resume)
+    except BaseException as exc:
+        if _interrupt_code(exc) is not None:
+            args.kept = _kept_batches(out, args.study)
+        elif isinstance(exc, RuntimeError):   # a failed gcc command, with its output
+            print(f"symcushion envelope: error: {exc}", file=sys.stderr)
+            return 1
+        raise
     ps = result.p_stable()
     counts = ", ".join(f"{k} {v}" for k, v in result.counts().items() if v)
     print(f"P(stable) = {ps['p']:.3f} [{ps['low']:.3f}, {ps['high']:.3f}] "
@@ -302,6 +451,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="write into figures/, the figures committed to the repository")
     p.add_argument("--duration", type=float, default=None, metavar="SECONDS",
                    help="simulated time of each run in s (default: the scenes' own)")
+    _add_overwrite(p)
     p.set_defaults(func=_cmd_reproduce)
 
     p = sub.add_parser("simulate", help="simulate a scene file: trajectory, figures, animation",
@@ -323,20 +473,27 @@ def _parser() -> argparse.ArgumentParser:
                         "(default: the scene's)")
     p.add_argument("--adaptive", action="store_true",
                    help="halve dt where the paper's step criterion 1 - n_k.n_k+1 < eps fails")
+    p.add_argument("--stability", action="store_true",
+                   help="cap each step at the explicit stability limit of the legs (implies "
+                        "--adaptive; for a dt above the stable step)")
     p.add_argument("--no-plots", action="store_true",
                    help="write no summary.png and no animation.gif")
     p.add_argument("--frames", type=_positive_int, default=DEFAULT_FRAMES, metavar="N",
                    help="frames of animation.gif (default: %(default)s)")
     p.add_argument("--strict", action="store_true",
                    help=f"exit with status {EXIT_WARNINGS} if the run gave any warning")
+    _add_overwrite(p)
     p.set_defaults(func=_cmd_simulate)
 
-    p = sub.add_parser("check", help="check a scene file (every field and the physics) "
-                       "without simulating",
-                       description="Check a scene TOML file: every field, and the physical "
-                       "sanity checks of docs/checks.md, without simulating. Exit status 0 when "
+    p = sub.add_parser("check", help="check a scene or study file (every field and the "
+                       "physics) without simulating",
+                       description="Check a scene, envelope, design or optimise study TOML "
+                       "file: every field, and the physical sanity checks of docs/checks.md "
+                       "for every scene it describes, without simulating. Exit status 0 when "
                        "clean, 1 on errors (and on warnings with --strict).")
-    p.add_argument("scene", type=Path, help="scene TOML file (docs/scenes.md)")
+    p.add_argument("scene", type=Path, metavar="FILE",
+                   help="scene (docs/scenes.md) or study TOML file (docs/envelope.md, "
+                        "docs/optimise.md); - reads standard input")
     p.add_argument("--strict", action="store_true", help="exit 1 on warnings too")
     p.set_defaults(func=_cmd_check)
 
@@ -352,6 +509,13 @@ def _parser() -> argparse.ArgumentParser:
     _add_study_commands(sub)
     _add_design_command(sub)
     return parser
+
+
+def _add_overwrite(p):
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace the results of an earlier run at the output path (its stale "
+                        f"files are removed; without this the command stops with status "
+                        f"{EXIT_OUTPUT_EXISTS})")
 
 
 def _add_study_commands(sub):
@@ -377,6 +541,7 @@ def _add_study_commands(sub):
                    help="result JSON (default: out/<study name>.json)")
     p.add_argument("--max-iter", type=int, default=None,
                    help="override Ipopt's max_iter (default: the study's)")
+    _add_overwrite(p)
     p.set_defaults(func=_cmd_optimise)
 
     p = sub.add_parser("envelope", help="Monte Carlo touchdown stability envelope of a study "
@@ -401,6 +566,11 @@ def _add_study_commands(sub):
                    help="workers of the local Dask cluster (default: %(default)s)")
     p.add_argument("--build-dir", type=Path, default=None, metavar="DIR",
                    help="cache of compiled Functions (default: build/envelope)")
+    p.add_argument("--resume", action="store_true",
+                   help="continue an interrupted study in its output folder from its finished "
+                        "batches (same study file and options); the results equal an "
+                        "uninterrupted run's")
+    _add_overwrite(p)
     p.set_defaults(func=_cmd_envelope)
 
 
@@ -425,11 +595,12 @@ def _add_design_command(sub):
                    help="gradient check at the start and at the optimum")
     p.add_argument("--build-dir", type=Path, default=None, metavar="DIR",
                    help="cache of compiled Functions (default: build/robust, build/envelope)")
+    _add_overwrite(p)
     p.set_defaults(func=_cmd_design)
 
 
 class Terminated(SystemExit):
-    """Raised by the SIGTERM handler; its code is 128 + the signal number."""
+    """Raised by the SIGTERM and SIGINT handler; its code is 128 + the signal number."""
 
 
 #: Seconds between re-raisings of a termination that has not reached :func:`main`.
@@ -439,11 +610,13 @@ class Terminated(SystemExit):
 #: run go on to its end.
 TERMINATION_REMINDER = 0.1
 
-_pending: int | None = None     # the exit code of a SIGTERM not yet reported
+_pending: int | None = None     # the exit code of a SIGTERM or SIGINT not yet reported
 
 
 def _terminate(signum, frame):
-    """SIGTERM ends the run like Ctrl-C: temporary files are removed, results kept whole.
+    """SIGTERM and SIGINT (Ctrl-C) end a command cleanly: temporary files are
+    removed, what is complete is kept (a run's finished blocks, an envelope's
+    finished batches), and :func:`main` exits with 128 + the signal number.
 
     The termination is remembered and raised again every
     :data:`TERMINATION_REMINDER` s (SIGALRM) until :func:`main` reports it.
@@ -486,37 +659,55 @@ def _termination_in(exc: BaseException) -> Terminated | None:
     return None
 
 
+def _interrupt_code(exc: BaseException) -> int | None:
+    """The exit status of an interrupt behind ``exc`` (130 for Ctrl-C, 128 + the
+    signal for a termination), None for any other exception."""
+    if isinstance(exc, KeyboardInterrupt):
+        return EXIT_INTERRUPTED
+    term = _termination_in(exc)
+    return None if term is None else term.code
+
+
 def main(argv=None) -> int:
     global _pending
     args = _parser().parse_args(argv)
+    args.kept = None        # a command that keeps part of its work says what, for the message
     _pending = None
-    previous = signal.signal(signal.SIGTERM, _terminate)
+    previous = {sig: signal.signal(sig, _terminate) for sig in (signal.SIGTERM, signal.SIGINT)}
     previous_alarm = signal.signal(signal.SIGALRM, _remind)
     try:
         return args.func(args)
     except (ValueError, TypeError, FileNotFoundError) as exc:
-        if (term := _termination_in(exc)) is not None:
-            return _report_termination(args, term)
+        if (code := _interrupt_code(exc)) is not None:
+            return _report_termination(args, code)
         print(f"symcushion {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+        return _error_status(exc)
     except Exception as exc:
-        if (term := _termination_in(exc)) is None:
+        if (code := _interrupt_code(exc)) is None:
             raise
-        return _report_termination(args, term)
-    except Terminated as term:
-        return _report_termination(args, term)
+        return _report_termination(args, code)
+    except (Terminated, KeyboardInterrupt) as exc:
+        return _report_termination(args, _interrupt_code(exc))
     finally:
         if _pending is not None:
             signal.setitimer(signal.ITIMER_REAL, 0)
         _pending = None
-        signal.signal(signal.SIGTERM, previous)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
         signal.signal(signal.SIGALRM, previous_alarm)
 
 
-def _report_termination(args, term: Terminated) -> int:
-    print(f"symcushion {args.command}: terminated (exit {term.code}); finished results "
-          "are kept, unfinished ones removed.", file=sys.stderr)
-    return term.code
+def _error_status(exc) -> int:
+    from .results import OutputExists
+
+    return EXIT_OUTPUT_EXISTS if isinstance(exc, OutputExists) else EXIT_BAD_INPUT
+
+
+def _report_termination(args, code: int) -> int:
+    what = "interrupted" if code == EXIT_INTERRUPTED else "terminated"
+    kept = args.kept or "finished results are kept, unfinished ones removed"
+    print(f"symcushion {args.command}: {what} (exit {code}); {kept}.", file=sys.stderr)
+    return code
 
 
 if __name__ == "__main__":  # pragma: no cover

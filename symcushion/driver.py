@@ -256,6 +256,13 @@ def simulate(scene, *, model: StepModel | None = None, x0=None, p=None,
             info = _run_fixed(model, x0, p, recorder)
         else:
             info = _run_adaptive(model, x0, p, eps, recorder, stability)
+    except BaseException as exc:
+        # an interrupt (Ctrl-C, a termination) keeps what is complete: the
+        # events and warnings of the blocks recorded so far go with the
+        # exception, for a caller that keeps the rows its sink received
+        exc.run_so_far = {"events": list(recorder.events), "warnings": list(recorder.warnings),
+                          "events_dropped": recorder.dropped}
+        raise
     finally:
         recorder.bar.close()
     traj = recorder.finish(scene.gravity)

@@ -23,7 +23,7 @@ from .layout import state_layout
 from .touchdown import initial_state
 from .validation import did_you_mean
 
-__all__ = ["RunMonitor", "DEFAULT_TOLERANCES", "ENERGY_FLOOR"]
+__all__ = ["RunMonitor", "DEFAULT_TOLERANCES", "ENERGY_FLOOR", "no_touchdown"]
 
 #: Tolerances of :class:`RunMonitor` (override by passing ``tolerances``).
 DEFAULT_TOLERANCES = {
@@ -157,7 +157,10 @@ class RunMonitor:
             self._add(out, "energy_growth", "warning", t[i], f"the energy grew by "
                       f"{gain[i]:.3g} J by t = {t[i]:.6g} s, more than the elements can supply "
                       f"({self._allowed:.3g} J with tolerance); the step is unstable or the "
-                      "contact adds energy — reduce `dt`.", value=gain[i])
+                      f"contact adds energy — reduce `dt` (command line: --dt "
+                      f"{self.scene.dt / 4:.3g}) or cap each step at the stability limit "
+                      "(command line: --stability; Python: simulate(..., adaptive=True, "
+                      "stability=True)).", value=gain[i])
         return out
 
     def _check_geometry(self, out, t, X):
@@ -194,6 +197,32 @@ class RunMonitor:
                         self._add(out, "off_terrain", "error", t[i], f"foot of leg {j} is in "
                                   f"contact off the grid of obstacle[{k}] at t = {t[i]:.6g} s.",
                                   leg=j)
+
+
+def no_touchdown(traj) -> Finding | None:
+    """A warning if no foot of a finished run ever touched an obstacle, else None.
+
+    A run that never lands has nothing to say about the legs; most often the
+    body starts too high for the simulated time. Read from the run's
+    touchdown events (every one is recorded, or counted once the event list
+    is full) and its kept rows (a foot in contact from the start has no
+    touchdown event).
+
+    Parameters
+    ----------
+    traj : Trajectory
+        A finished run (``info['events']`` and ``contact``).
+    """
+    events = traj.info.get("events", [])
+    touched = (any(e.get("kind") == "touchdown" for e in events)
+               or traj.info.get("events_dropped", 0) > 0 or bool(np.any(traj.contact > 0.5)))
+    if touched:
+        return None
+    t_end = float(traj.t[-1]) if len(traj.t) else 0.0
+    return Finding("no_touchdown", f"no foot touched an obstacle in the {t_end:g} s simulated: "
+                   "the body never landed, so the run says nothing about the legs; start it "
+                   "closer to the ground (symcushion.placement.place_on_obstacle) or simulate "
+                   "longer (`duration`, --duration).", "warning", time=t_end)
 
 
 def _energy_supply(scene: Scene, x0) -> float:

@@ -33,12 +33,15 @@ from .layout import MODES, output_columns, state_columns
 
 __all__ = ["trajectory_columns", "column_unit", "check_out_dir", "check_output_file",
            "result_dir", "atomic_write_text", "write_csv", "jsonable", "to_json", "replacing", "ResultWriter",
-           "read_result", "versions",
-           "CSV_NAME", "NPZ_NAME", "JSON_NAME", "UNITS", "MODE_CODES"]
+           "read_result", "versions", "OutputExists", "claim_output", "remove_stale",
+           "CSV_NAME", "NPZ_NAME", "JSON_NAME", "RUN_FILES", "UNITS", "MODE_CODES"]
 
 CSV_NAME = "trajectory.csv"
 NPZ_NAME = "trajectory.npz"
 JSON_NAME = "run.json"
+#: Every file a ``simulate`` run writes into its result folder: the ones it
+#: refuses to replace without ``--overwrite``, and the only ones it removes.
+RUN_FILES = (CSV_NAME, NPZ_NAME, JSON_NAME, "summary.png", "animation.gif")
 
 #: Unit suffixes of the column names, longest first so that ``_m_s2`` is not
 #: read as ``_s2``; ``1`` marks a dimensionless column.
@@ -158,6 +161,79 @@ def result_dir(out_dir, name: str, argument: str = "--out") -> Path:
                          "e.g. name = \"drop_1\".")
     out = check_out_dir(out_dir, argument)
     return check_out_dir(out / name, argument)
+
+
+class OutputExists(ValueError):
+    """The output folder holds results of another run, and ``overwrite`` was not given."""
+
+
+def claim_output(directory, owned, *, overwrite: bool = False,
+                 argument: str = "--out") -> list:
+    """Check that ``directory`` holds none of the files a run would write.
+
+    A second run into a folder would replace some of the first run's files
+    and leave the others (a figure the second run does not draw) beside
+    them, so a folder holding any of ``owned`` is refused unless
+    ``overwrite``; the run then removes the stale ones with
+    :func:`remove_stale`. Called before any work.
+
+    Parameters
+    ----------
+    directory : Path
+        The output folder (existing: :func:`check_out_dir`).
+    owned : sequence of str
+        Names of the files (or folders) the run writes there.
+    overwrite : bool
+        Allow replacing them.
+    argument : str
+        The output argument, for the message.
+
+    Returns
+    -------
+    list of Path
+        The owned paths that exist.
+
+    Raises
+    ------
+    OutputExists
+        (a ValueError) when some exist and ``overwrite`` is False.
+    """
+    directory = Path(directory)
+    existing = [directory / name for name in owned if (directory / name).exists()]
+    if existing and not overwrite:
+        names = ", ".join(p.name for p in existing)
+        raise OutputExists(f"`{argument}` {directory} already holds the results of another run "
+                           f"({names}); give `--overwrite` to replace them (only these names "
+                           "are removed), or choose another folder.")
+    return existing
+
+
+def remove_stale(directory, owned, keep=()) -> list:
+    """Remove the files of ``owned`` in ``directory`` that are not in ``keep``.
+
+    Only the given names are touched, never another file of the folder; a
+    name that is a folder is removed with the files in it.
+
+    Returns
+    -------
+    list of Path
+        What was removed.
+    """
+    import shutil
+
+    directory = Path(directory)
+    keep = {Path(k).name for k in keep}
+    removed = []
+    for name in owned:
+        path = directory / name
+        if name in keep or not (path.exists() or path.is_symlink()):
+            continue
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path)
+        else:
+            path.unlink()
+        removed.append(path)
+    return removed
 
 
 def _temporary(path: Path, mode: str):
@@ -286,12 +362,26 @@ class ResultWriter:
     def __init__(self, directory, columns):
         self.directory = Path(directory)
         self.columns = list(columns)
-        self.rows = 0
         self._format = _csv_formatter(self.columns)
         self._csv, self._csv_tmp = _temporary(self.directory / CSV_NAME, "w")
         self._raw, self._raw_tmp = _temporary(self.directory / NPZ_NAME, "wb")
-        self._csv.write(",".join(self.columns) + "\n")
+        header = ",".join(self.columns) + "\n"
+        self._csv.write(header)
+        # (rows, CSV bytes, raw bytes, time of the last row) after the last
+        # complete append, set in one assignment: an interrupt between the two
+        # writes of a block leaves it describing the previous block
+        self._mark = (0, len(header), 0, None)
         self._done = False
+
+    @property
+    def rows(self) -> int:
+        """Rows appended completely so far."""
+        return self._mark[0]
+
+    @property
+    def last_time(self):
+        """First column (time) of the last complete row, None before any row."""
+        return self._mark[3]
 
     def __enter__(self):
         return self
@@ -306,24 +396,39 @@ class ResultWriter:
         rows = np.ascontiguousarray(rows, dtype=float)
         if rows.ndim != 2 or rows.shape[1] != len(self.columns):
             raise ValueError(f"`rows` must have shape (k, {len(self.columns)}), got {rows.shape}.")
-        self._csv.write(self._format(rows))
-        self._raw.write(rows.tobytes())
-        self.rows += rows.shape[0]
+        if rows.shape[0] == 0:
+            return
+        text, raw = self._format(rows), rows.tobytes()     # the CSV is ASCII: chars = bytes
+        self._csv.write(text)
+        self._raw.write(raw)
+        rows_done, csv_bytes, raw_bytes, _ = self._mark
+        self._mark = (rows_done + rows.shape[0], csv_bytes + len(text), raw_bytes + len(raw),
+                      float(rows[-1, 0]))
 
     def finish(self, metadata: dict) -> dict:
         """Close the files, write ``run.json`` and move everything into place.
+
+        Only completely appended rows are kept: after an interrupt that fell
+        inside :meth:`append`, the files end at the block before, so a run
+        stopped early leaves whole files of the rows it finished.
 
         Returns
         -------
         dict
             Paths of ``csv``, ``npz`` and ``json``.
         """
-        metadata = dict(metadata, rows=self.rows,
+        if self._done:
+            raise ValueError("this ResultWriter was already finished or aborted; start a new "
+                             "one for another run.")
+        rows, csv_bytes, raw_bytes, _ = self._mark
+        metadata = dict(metadata, rows=rows,
                         columns=[{"name": c, "unit": column_unit(c)} for c in self.columns])
         text = to_json(metadata)
         try:
             self._csv.close()
             self._raw.close()
+            os.truncate(self._csv_tmp, csv_bytes)
+            os.truncate(self._raw_tmp, raw_bytes)
             npz_fh, npz_tmp = _temporary(self.directory / NPZ_NAME, "wb")
             npz_fh.close()
             try:
@@ -341,7 +446,7 @@ class ResultWriter:
 
     def _write_npz(self, target: Path, metadata_text: str):
         """NPZ of the raw rows, copied in chunks (no full array in memory)."""
-        shape = (self.rows, len(self.columns))
+        shape = (self.rows, len(self.columns))      # the raw file holds exactly these
         with zipfile.ZipFile(target, "w", zipfile.ZIP_STORED, allowZip64=True) as zf:
             with zf.open("data.npy", "w", force_zip64=True) as member:
                 np.lib.format.write_array_header_1_0(

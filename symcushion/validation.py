@@ -15,12 +15,13 @@ from __future__ import annotations
 import difflib
 import math
 import os
+import re
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["SceneError", "Problems", "Table", "INVALID", "real", "integer", "vector", "direction",
-           "choice", "boolean", "path", "did_you_mean", "show"]
+__all__ = ["SceneError", "Problems", "Table", "INVALID", "ANGLE_FIELDS", "real", "integer", "vector",
+           "direction", "choice", "boolean", "path", "did_you_mean", "show"]
 
 #: Longest repr of a bad value quoted in a message (characters); a 10⁶-entry
 #: list must not flood the terminal.
@@ -31,6 +32,20 @@ SHOW_CHARS = 80
 #: default, which catches one or two wrong letters in a short key.
 SUGGESTIONS = 1
 SUGGESTION_CUTOFF = 0.6
+
+#: The angle fields of scene and study files, by table path (list indices
+#: left out) and key, with the largest magnitude plausible in radians and
+#: why. Each is radians as ``key`` and degrees as ``key_deg`` (both at once is
+#: an error). A radian value beyond its bound is an error that suggests the
+#: degree field: ``angle = 12.0`` is far more likely 12° typed into a radian
+#: field than 12 rad (687.5°, which a plane would take as a 32.5° slope).
+ANGLE_FIELDS = {
+    "obstacle.angle": (math.pi / 2, "a slope of at most 90°"),
+    "legs.azimuth0": (2 * math.pi, "at most one turn, 360°"),
+    "limits.beta": (math.pi / 2, "a hinge deflection of at most 90°"),
+    "limits.gamma": (math.pi / 2, "a hinge deflection of at most 90°"),
+    "limits.tilt": (math.pi / 2, "a tilt of at most 90°"),
+}
 
 
 class SceneError(ValueError):
@@ -287,6 +302,8 @@ class Table:
         ``kind`` is one of number, int, vector (``size``: an int or a tuple of
         allowed sizes), string (``choices``), bool, strings, table, tables, any.
         """
+        if kind == "number" and self._angle_bound(key) is not None:
+            return self.angle(key, default, positive=positive, nonnegative=nonnegative)
         self.used.add(key)
         if key not in self.data:
             if default is ...:
@@ -295,12 +312,7 @@ class Table:
             return default
         value = self.data[key]
         if kind == "number":
-            ok = _is_real(value) and self._finite(value)
-            if not ok or (positive and not value > 0) or (nonnegative and not value >= 0):
-                return self.fail(self._message(key, value, "a positive number" if positive else
-                                               "a non-negative number" if nonnegative else
-                                               "a finite number"))
-            return float(value)
+            return self._number(key, value, positive, nonnegative)
         if kind == "int":
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 return self.fail(self._message(key, value, "a positive integer"))
@@ -342,8 +354,51 @@ class Table:
             return value
         raise AssertionError(kind)
 
+    def _number(self, key, value, positive=False, nonnegative=False):
+        ok = _is_real(value) and self._finite(value)
+        if not ok or (positive and not value > 0) or (nonnegative and not value >= 0):
+            return self.fail(self._message(key, value, "a positive number" if positive else
+                                           "a non-negative number" if nonnegative else
+                                           "a finite number"))
+        return float(value)
+
+    def _angle_bound(self, key):
+        """(bound in rad, why) of an angle field (:data:`ANGLE_FIELDS`), else None."""
+        return ANGLE_FIELDS.get(re.sub(r"\[\d+\]", "", self._where(key)))
+
+    def angle(self, key, default=..., unit="rad", positive=False, nonnegative=False):
+        """An angle given in radians as ``key`` or in degrees as ``key_deg``, in ``unit``.
+
+        ``unit`` is ``"rad"`` or ``"deg"``: the value is converted only when it
+        was given in the other unit, so a degree field read in degrees is
+        exact. A radian value beyond the field's bound in :data:`ANGLE_FIELDS`
+        is an error that suggests the degree field.
+        """
+        deg = key + "_deg"
+        self.used.update((key, deg))
+        if key in self.data and deg in self.data:
+            return self.fail(f"give either `{self._where(key)}` (radians) or "
+                             f"`{self._where(deg)}` (degrees), not both.")
+        if deg in self.data:
+            value = self._number(deg, self.data[deg], positive, nonnegative)
+            return value if value is INVALID or unit == "deg" else math.radians(value)
+        if key not in self.data:
+            if default is ...:
+                return self.fail(f"missing field `{self._where(key)}` (radians; or "
+                                 f"`{self._where(deg)}` in degrees); add it (see {self.docs}).")
+            return default
+        value = self._number(key, self.data[key], positive, nonnegative)
+        bound = self._angle_bound(key)
+        if value is not INVALID and bound is not None and abs(value) > bound[0]:
+            return self.fail(f"field `{self._where(key)}` = {show(self.data[key])} is not "
+                             f"plausible in radians (at most {bound[0]:.4g} rad, {bound[1]}); "
+                             f"if you meant degrees, write `{deg} = {show(self.data[key])}` "
+                             "(docs/scenes.md, \"Angles\").")
+        return value if value is INVALID or unit == "rad" else math.degrees(value)
+
     def has(self, key):
-        return key in self.data
+        return key in self.data or (self._angle_bound(key) is not None
+                                    and key + "_deg" in self.data)
 
     def finish(self, known=()):
         """Report keys that were never read, each with the closest known key."""

@@ -7,6 +7,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from symcushion import __version__, cli
@@ -118,7 +119,7 @@ def test_strict_turns_warnings_into_an_exit_status(tmp_path, monkeypatch, capsys
     base = ["simulate", str(FIG3), "--out", str(tmp_path), "--duration", "0.02", "--no-plots"]
     assert cli.main(base) == 0
     assert "warning: t = " in capsys.readouterr().err
-    assert cli.main(base + ["--strict"]) == cli.EXIT_WARNINGS
+    assert cli.main(base + ["--strict", "--overwrite"]) == cli.EXIT_WARNINGS
     meta = json.loads((tmp_path / "fig3" / "run.json").read_text())
     assert meta["warnings"][0]["message"] == "fake finding"
 
@@ -132,12 +133,12 @@ def test_reproduce_writes_a_new_folder_not_figures(tmp_path, monkeypatch, capsys
     assert cli.main(["reproduce", "--out", "x", "--update-figures"]) == 2
 
 
-def _run_and_kill(out: Path, duration: float):
-    """Start a long simulate in a subprocess; SIGTERM it while it writes; wait for it."""
+def _run_and_kill(out: Path, duration: float, sig=signal.SIGTERM, extra=()):
+    """Start a long simulate in a subprocess; send ``sig`` while it writes; wait for it."""
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     proc = subprocess.Popen([sys.executable, "-m", "symcushion.cli", "simulate", str(FIG3),
-                             "--out", str(out), "--duration", str(duration), "--no-plots"],
-                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+                             "--out", str(out), "--duration", str(duration), "--no-plots",
+                             *extra], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     directory = out / "fig3"
     deadline = time.monotonic() + KILL_TIMEOUT
     while time.monotonic() < deadline:        # wait for rows in the temporary CSV
@@ -148,26 +149,50 @@ def _run_and_kill(out: Path, duration: float):
     else:
         proc.kill()
         pytest.fail("the run never started writing")
-    proc.send_signal(signal.SIGTERM)
+    proc.send_signal(sig)
     _, err = proc.communicate(timeout=KILL_TIMEOUT)
     _run_and_kill.stderr = err.decode(errors="replace")[-2000:]   # for the failure message
     return proc.returncode, directory
 
 
-def test_killed_run_leaves_the_previous_complete_file(tmp_path):
+def _assert_whole_interrupted_run(directory):
+    """The files of an interrupted run: whole, the same rows, marked in run.json."""
+    from symcushion.results import RUN_FILES
+
+    assert {p.name for p in directory.iterdir()} <= set(RUN_FILES) | {"notes.txt"}
+    meta = json.loads((directory / "run.json").read_text())
+    assert meta["status"] == "interrupted"
+    with np.load(directory / "trajectory.npz") as z:
+        data = z["data"]
+    lines = (directory / "trajectory.csv").read_text().splitlines()
+    assert data.shape[0] == meta["rows"] == len(lines) - 1 > 1
+    assert data[-1, 0] == meta["t_end"] == float(lines[-1].split(",")[0])
+    assert all(e["time"] <= meta["t_end"] for e in meta["events"])
+    return meta
+
+
+def test_killed_run_keeps_its_finished_blocks_in_place_of_the_previous(tmp_path):
     out = tmp_path / "out"
     assert cli.main(["simulate", str(FIG3), "--out", str(out), "--duration", "0.03",
                      "--no-plots"]) == 0
-    before = {p.name: p.read_bytes() for p in (out / "fig3").iterdir()}
-    code, directory = _run_and_kill(out, KILLED_DURATION)
+    (out / "fig3" / "summary.png").write_text("a figure of the earlier run")
+    (out / "fig3" / "notes.txt").write_text("the user's own file")
+    code, directory = _run_and_kill(out, KILLED_DURATION, extra=["--overwrite"])
     assert code == 128 + signal.SIGTERM, _run_and_kill.stderr
-    assert {p.name: p.read_bytes() for p in directory.iterdir()} == before
+    meta = _assert_whole_interrupted_run(directory)
+    assert meta["rows"] > 31                              # the new run's, not the earlier one's
+    assert not (directory / "summary.png").exists()       # stale: not of this run
+    assert (directory / "notes.txt").read_text() == "the user's own file"
 
 
-def test_killed_first_run_leaves_no_file(tmp_path):
-    code, directory = _run_and_kill(tmp_path / "out", KILLED_DURATION)
-    assert code == 128 + signal.SIGTERM, _run_and_kill.stderr
-    assert list(directory.iterdir()) == []
+def test_ctrl_c_ends_simulate_cleanly_keeping_the_finished_blocks(tmp_path):
+    code, directory = _run_and_kill(tmp_path / "out", KILLED_DURATION, sig=signal.SIGINT)
+    err = _run_and_kill.stderr
+    assert code == 130, err
+    assert "Traceback" not in err and "KeyboardInterrupt" not in err
+    last = err.strip().splitlines()[-1]
+    assert last.startswith("symcushion simulate: interrupted (exit 130)") and "t = " in last
+    _assert_whole_interrupted_run(directory)
 
 
 def _wrapped_termination(args):

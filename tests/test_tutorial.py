@@ -72,7 +72,7 @@ def test_tutorial_commands_run(workdir, capsys):
     assert (workdir / "envelope" / "cases.csv").is_file()
     # the Python snippets, in order, in the same folder (they load out/tutorial/lander)
     cli(["simulate", "studies/tutorial/lander.toml", "--out", "out/tutorial", "--duration",
-         SHORT, "--no-plots"])
+         SHORT, "--no-plots", "--overwrite"])
     try:
         import pandas  # noqa: F401
         skip = ()

@@ -2,21 +2,26 @@
 
 Owns :func:`run_envelope` (sample, build, run in batches, classify, write),
 :func:`evaluate` (given conditions), the grouping of cases into batches by
-library (frictionless or with friction), progress lines and writing the
-results. It must not define the case Function or the classification.
+library (frictionless or with friction), the finished batches kept on disk
+while a study runs (so an interrupted study resumes from them), progress
+lines and writing the results. It must not define the case Function or the
+classification.
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import os
+import shutil
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
+from ..results import atomic_write_text, replacing
 from ..scene import Scene
-from .build import _dask_batch, build_envelope, DEFAULT_CACHE, run_batch
+from .build import _dask_batch, _safe, build_envelope, DEFAULT_CACHE, run_batch
 from .cases import apply_design, case_params, initial_states, reach, SUMMARY
 from .classify import classify
 from .plots import plot_envelope
@@ -24,7 +29,8 @@ from .sampling import sample_conditions
 from .statistics import EnvelopeResult
 from .study import _check_counts, _DEFAULTS, EnvelopeStudy, VARIABLES
 
-__all__ = ["PROGRESS_INTERVAL", "PROGRESS_LOG_INTERVAL", "run_envelope", "evaluate", "write_result"]
+__all__ = ["PROGRESS_INTERVAL", "PROGRESS_LOG_INTERVAL", "BATCH_DIR", "run_envelope", "evaluate",
+           "write_result", "output_names"]
 
 #: Seconds between updates of the progress bar on a terminal.
 PROGRESS_INTERVAL = 0.5
@@ -32,6 +38,12 @@ PROGRESS_INTERVAL = 0.5
 #: file, CI): the example study runs for minutes, and a bar that tqdm hides
 #: there would leave its log silent until the end.
 PROGRESS_LOG_INTERVAL = 30.0
+#: Folder, inside a study's output folder, of the batches finished so far: each
+#: is written as it finishes, so an interrupted study keeps them and
+#: ``run_envelope(..., resume=True)`` runs only the others. Removed once
+#: cases.csv and summary.json are written.
+BATCH_DIR = "batches"
+_BATCH_MANIFEST = "study.json"
 
 
 class _Progress:
@@ -114,10 +126,82 @@ def _scene_data(study: EnvelopeStudy, friction: bool, mu: np.ndarray) -> dict | 
     return raw
 
 
+def _fingerprint(x0, p: dict, tasks: list, libraries: dict, dt: float) -> str:
+    """What the batches' results depend on: every case's initial state and
+    parameters, the grouping into batches, Δt and the compiled libraries (their
+    folder names carry the fingerprint of the generated source)."""
+    digest = hashlib.sha256()
+    digest.update(np.ascontiguousarray(x0, dtype=float).tobytes())
+    for friction in sorted(p):
+        digest.update(np.ascontiguousarray(p[friction], dtype=float).tobytes())
+        digest.update(Path(libraries[friction]).parent.name.encode())
+    for friction, idx in tasks:
+        digest.update(bytes([friction]) + np.asarray(idx, dtype=np.int64).tobytes())
+    digest.update(repr(float(dt)).encode())
+    return digest.hexdigest()
+
+
+class _Batches:
+    """The finished batches of a study in ``out_dir/batches``, one NPZ each.
+
+    A fresh run starts the folder with a manifest holding the study's
+    fingerprint (:func:`_fingerprint`); a resumed run requires the same
+    fingerprint, so batches are only ever combined with those of the same
+    cases. Each batch is written atomically as it finishes.
+    """
+
+    def __init__(self, out_dir, fingerprint: str, total: int, resume: bool):
+        self.folder = Path(out_dir) / BATCH_DIR
+        manifest = self.folder / _BATCH_MANIFEST
+        if resume:
+            if not manifest.is_file():
+                raise ValueError(f"`resume`: {Path(out_dir)} holds no finished batches of an "
+                                 f"interrupted study ({BATCH_DIR}/{_BATCH_MANIFEST} is missing); "
+                                 "run the study without --resume.")
+            saved = json.loads(manifest.read_text())
+            if saved.get("fingerprint") != fingerprint:
+                raise ValueError(f"`resume`: the finished batches in {self.folder} belong to "
+                                 "another study (other cases, scene, batch size or design); "
+                                 "resume with the same study file and options, or start again "
+                                 "with --overwrite.")
+            return
+        if self.folder.exists():
+            shutil.rmtree(self.folder)
+        self.folder.mkdir(parents=True)
+        atomic_write_text(manifest, json.dumps({"fingerprint": fingerprint, "tasks": total}))
+
+    def _path(self, k: int) -> Path:
+        return self.folder / f"batch_{k:06d}.npz"
+
+    def load(self, tasks: list) -> dict:
+        """The finished batches by task number: (x_end, summary) of their cases."""
+        done = {}
+        for k, (_, idx) in enumerate(tasks):
+            if self._path(k).is_file():
+                with np.load(self._path(k), allow_pickle=False) as z:
+                    if np.array_equal(z["index"], idx):
+                        done[k] = (z["x_end"], z["summary"])
+        return done
+
+    def save(self, k: int, idx, x_end, summary):
+        with replacing(self._path(k)) as tmp:
+            np.savez(tmp, index=np.asarray(idx), x_end=x_end, summary=summary)
+
+    def remove(self):
+        shutil.rmtree(self.folder, ignore_errors=True)
+
+
+def output_names(study: EnvelopeStudy) -> tuple:
+    """Names of every file and folder a study writes into its output folder."""
+    name = _safe(study.name)                # as the figures name their files
+    return ("cases.csv", "summary.json", f"{name}.png", f"{name}_pstable.png",
+            f"{name}_pstable.csv", f"{name}_distributions.png", BATCH_DIR)
+
+
 def run_envelope(study: EnvelopeStudy, out_dir=None, *, threads: int | None = None,
                  dask: bool = False, scheduler: str | None = None, workers: int = 2,
                  cache_dir=None, progress: bool = True, plots: bool = True,
-                 design: dict | None = None) -> EnvelopeResult:
+                 design: dict | None = None, resume: bool = False) -> EnvelopeResult:
     """Sample, run, classify and (with ``out_dir``) write an envelope study.
 
     Parameters
@@ -125,7 +209,8 @@ def run_envelope(study: EnvelopeStudy, out_dir=None, *, threads: int | None = No
     study : EnvelopeStudy
     out_dir : str or Path, optional
         Writes ``cases.csv``, ``summary.json`` and, with ``plots``, the figures
-        (:func:`plot_envelope`).
+        (:func:`plot_envelope`). While the study runs, each finished batch is
+        kept in ``out_dir/batches`` (:data:`BATCH_DIR`), removed at the end.
     threads : int, optional
         Threads of the local run (``map(batch, "thread", threads)``); default
         every core (``os.cpu_count()``).
@@ -168,33 +253,55 @@ def run_envelope(study: EnvelopeStudy, out_dir=None, *, threads: int | None = No
     p = _all_params(study, conditions["mu"], gravity, design)
     build_seconds = time.perf_counter() - started
     tasks = _tasks(conditions, study.batch)
+    if resume and out_dir is None:
+        raise ValueError("`resume` continues a study from the batches in its `out_dir`; give "
+                         "`out_dir`.")
+    batches = None if out_dir is None else _Batches(
+        out_dir, _fingerprint(x0, p, tasks, libraries, scene.dt), len(tasks), resume)
+    finished = {} if batches is None else batches.load(tasks)
     x_end = np.zeros_like(x0)
     summary = np.zeros((len(SUMMARY), study.n))
     backend = "dask" if dask else "threads"
     bar = _Progress(study.n, progress, f"{study.name} ({backend})")
+    for k, (xe, sm) in finished.items():
+        idx = tasks[k][1]
+        x_end[:, idx], summary[:, idx] = xe, sm
+        bar.update(len(idx))
+
+    def done(k, xe, sm):
+        idx = tasks[k][1]
+        x_end[:, idx], summary[:, idx] = xe, sm
+        if batches is not None:
+            batches.save(k, idx, xe, sm)
+        bar.update(len(idx))
+
+    todo = [k for k in range(len(tasks)) if k not in finished]
     started = time.perf_counter()
     info = {}
     if not dask:
-        for friction, idx in tasks:
-            xe, sm = run_batch(libraries[friction], x0[:, idx], p[friction][:, idx], scene.dt,
-                               threads)
-            x_end[:, idx], summary[:, idx] = xe, sm
-            bar.update(len(idx))
+        for k in todo:
+            friction, idx = tasks[k]
+            done(k, *run_batch(libraries[friction], x0[:, idx], p[friction][:, idx], scene.dt,
+                               threads))
         info = {"threads": threads}
     else:
         # run_seconds leaves out the cluster's start (reported as startup_seconds)
-        info = _run_dask(study, tasks, libraries, x0, conditions["mu"], p, x_end, summary, bar,
+        info = _run_dask(study, tasks, todo, libraries, x0, conditions["mu"], p, done, bar,
                          scheduler, workers, cache_dir)
+    if finished:
+        info["resumed_cases"] = int(sum(len(tasks[k][1]) for k in finished))
     run_seconds = info.pop("compute_seconds", time.perf_counter() - started)
     columns = classify(summary, x_end, gravity, x0, study.limits, len(scene.legs),
                        reach(scene))
     timings = {"backend": backend, **info, "batch": study.batch,
                "build_seconds": round(build_seconds, 3), "run_seconds": round(run_seconds, 3),
-               "cases_per_second": round(study.n / run_seconds, 1),
+               "cases_per_second": round((study.n - info.get("resumed_cases", 0))
+                                         / max(run_seconds, 1e-9), 1),
                "steps_per_case": scene.steps, "dt": scene.dt}
     result = EnvelopeResult(study, conditions, columns, timings)
     if out_dir is not None:
         write_result(result, out_dir, plots=plots)
+        batches.remove()
     return result
 
 
@@ -241,7 +348,7 @@ def evaluate(study: EnvelopeStudy, conditions: dict, *, threads: int = 1, cache_
                     reach(study.scene))
 
 
-def _run_dask(study, tasks, libraries, x0, mu, p, x_end, summary, bar, scheduler,
+def _run_dask(study, tasks, todo, libraries, x0, mu, p, done, bar, scheduler,
               workers, cache_dir) -> dict:
     try:
         from distributed import Client, LocalCluster, as_completed
@@ -261,18 +368,16 @@ def _run_dask(study, tasks, libraries, x0, mu, p, x_end, summary, bar, scheduler
     bar.started = time.perf_counter()
     try:
         futures = {}
-        for k, (friction, idx) in enumerate(tasks):
+        for k in todo:
+            friction, idx = tasks[k]
             fut = client.submit(_dask_batch, str(Path(libraries[friction]).resolve()),
                                 _scene_data(study, friction, mu), study.source, cache,
                                 x0[:, idx], p[friction][:, idx], study.scene.dt,
                                 key=f"envelope-{study.name}-{study.seed}-{k}-{os.getpid()}-"
                                     f"{time.monotonic_ns()}")
-            futures[fut] = idx
+            futures[fut] = k
         for fut in as_completed(futures):
-            idx = futures[fut]
-            xe, sm = fut.result()
-            x_end[:, idx], summary[:, idx] = xe, sm
-            bar.update(len(idx))
+            done(futures[fut], *fut.result())
         compute = time.perf_counter() - bar.started
         n_workers = len(client.scheduler_info().get("workers", {}))
     finally:
@@ -284,13 +389,16 @@ def _run_dask(study, tasks, libraries, x0, mu, p, x_end, summary, bar, scheduler
 
 
 def write_result(result: EnvelopeResult, out_dir, plots: bool = True) -> dict:
-    """Write ``cases.csv``, ``summary.json`` and (with ``plots``) the figures into ``out_dir``."""
+    """Write ``cases.csv``, ``summary.json`` and (with ``plots``) the figures into ``out_dir``.
+
+    Each file is written atomically (a temporary file moved into place).
+    """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     files = {"cases": out / "cases.csv", "summary": out / "summary.json"}
-    files["cases"].write_text(result.csv_text())
+    atomic_write_text(files["cases"], result.csv_text())
     if plots:
         files.update(plot_envelope(result, out))
     result.files = files
-    files["summary"].write_text(json.dumps(result.summary(), indent=1))
+    atomic_write_text(files["summary"], json.dumps(result.summary(), indent=1))
     return files

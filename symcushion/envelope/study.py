@@ -349,10 +349,13 @@ def study_from_dict(data: dict, source: str = "<dict>") -> EnvelopeStudy:
             raise li.error("rest_speed", rest, "a speed > 0 in m/s, or false to leave the "
                            "at-rest check out")
         limits = Limits(**{k: li.get(k, None, positive=True) for k in
-                           ("stroke", "beta", "gamma", "tilt_deg", "deceleration",
-                            "rebound_speed")}, rest_speed=rest)
+                           ("stroke", "beta", "gamma", "deceleration", "rebound_speed")},
+                        tilt_deg=li.angle("tilt", None, unit="deg", positive=True),
+                        rest_speed=rest)
     except ValueError as exc:
-        raise ValueError(f"{source}: {exc}") from None
+        message = str(exc)      # a field's own message names the file already
+        raise ValueError(message if message.startswith(f"{source}: ")
+                         else f"{source}: {message}") from None
     li.finish()
     top.finish()
     study = EnvelopeStudy(name=name, scene=scene, n=n, seed=seed, method=method, ranges=ranges,
