@@ -183,3 +183,28 @@ def test_memory_law_settings_are_checked():
         scene.with_(hysteresis="elastic")
     with pytest.raises(ValueError, match="damping"):
         Crushable(**HONEYCOMB, damping=-1.0)
+
+
+def _rest(dt):
+    """Largest force jump over the mean force, and the std of the vertical acceleration,
+    of the damped lander after t = 0.5 s."""
+    scene = load_scene(STUDIES / "lander_damped.toml").with_(dt=dt)
+    model = build_model(scene)
+    _, Y = model.rollout(scene.steps)(initial_state(scene), model.default_p, dt)
+    Y = np.asarray(Y)
+    yl = output_layout(len(scene.legs))
+    rest = dt * np.arange(1, scene.steps + 1) > 0.5
+    force = np.linalg.norm(yl.legs(Y, "force"), axis=1)[:, rest]
+    jump = np.max(np.abs(np.diff(force, axis=1)), axis=1) / np.mean(force, axis=1)
+    return np.max(jump), np.std(yl.get(Y, "acceleration")[2, rest])
+
+
+def test_the_damped_lander_comes_to_rest_without_chatter():
+    """After 0.5 s no contact force jumps by 5 % of its leg's mean in a step, the vertical
+    acceleration's spread is under 0.05 m/s², and it is the same at half the step (what
+    remains is physics, not the step)."""
+    jump, spread = _rest(1e-3)
+    jump_half, spread_half = _rest(5e-4)
+    assert jump < 0.05 and jump_half < 0.05, (jump, jump_half)
+    assert spread <= 0.05, spread
+    assert abs(spread - spread_half) <= 0.1 * spread_half, (spread, spread_half)

@@ -1,0 +1,111 @@
+"""Absorbers with memory: does a lander come to rest, crush only at its crush force, converge?
+
+Questions (docs/absorbers.md, "What it measures"):
+
+1. The damped lander (``studies/lander_damped.toml``: the tutorial's lander
+   with one-shot honeycomb cartridges, a viscous damper and the memory law)
+   after it settles,
+   t > 0.5 s, at Δt = 1 and 0.5 ms: the largest step-to-step jump of a
+   leg's contact force against that leg's mean force, and the standard
+   deviation of the vertical acceleration (chatter would keep both large
+   and independent of Δt; physics converges).
+2. The 300 kg lunar lander (``studies/lunar_lander300.toml``) under the
+   printed law and the memory law: the stroke crushed in steps whose axial
+   force is below 2.9 kN (the crush force is 3 kN).
+3. The order of the final position over Δt = 2 … 0.25 ms against a
+   31.25-µs run, for the lunar lander under both laws and the damped lander
+   (whose massless feet flicker behind their dampers: docs/absorbers.md).
+
+Output: the tables on stdout. Run: ``python studies/absorbers.py``.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from symcushion.layout import output_layout, state_layout
+from symcushion.scene import load_scene
+from symcushion.touchdown import build_model, initial_state
+
+HERE = Path(__file__).resolve().parent
+DAMPED = HERE / "lander_damped.toml"
+LUNAR = HERE / "lunar_lander300.toml"
+#: Time after which the tutorial lander is read as settled (s).
+SETTLED = 0.5
+#: Steps of the order fit and the reference step (s).
+ORDER_STEPS = (2e-3, 1e-3, 5e-4, 2.5e-4)
+REFERENCE_STEP = 3.125e-5
+
+
+def rollout(scene, dt):
+    """States and outputs (columns are steps) of ``scene`` at step ``dt``."""
+    scene = scene.with_(dt=dt)
+    model = build_model(scene)
+    X, Y = model.rollout(scene.steps)(initial_state(scene), model.default_p, dt)
+    X, Y = np.asarray(X), np.asarray(Y)
+    if not (np.all(np.isfinite(X)) and np.all(np.isfinite(Y))):
+        raise RuntimeError(f"{scene.name} at dt = {dt:g} s gave a non-finite state.")
+    return X, Y
+
+
+def rest_measures(scene, dt):
+    """(largest force jump over mean force, std of the vertical acceleration) after SETTLED."""
+    _, Y = rollout(scene, dt)
+    yl = output_layout(len(scene.legs))
+    t = dt * np.arange(1, Y.shape[1] + 1)
+    rest = t > SETTLED
+    force = np.linalg.norm(yl.legs(Y, "force"), axis=1)[:, rest]
+    jump = np.max(np.abs(np.diff(force, axis=1)), axis=1) / np.mean(force, axis=1)
+    return float(np.max(jump)), float(np.std(yl.get(Y, "acceleration")[2, rest]))
+
+
+def crushed_below(scene, dt=1e-3, below=2900.0):
+    """Per leg: stroke crushed (m) in steps whose axial force is below ``below`` (N)."""
+    X, Y = rollout(scene, dt)
+    n = len(scene.legs)
+    yl = output_layout(n)
+    axial = -np.einsum("jkt,jkt->jt", yl.legs(Y, "force"), yl.legs(Y, "axis"))
+    if scene.hysteresis == "memory":      # the crushed stroke is the set's inward motion
+        moved = np.diff(np.c_[np.zeros(n), state_layout(n).legs(X, "stroke_set")], axis=1)
+    else:                                 # the printed law has no set: the stroke's
+        moved = np.diff(np.c_[np.zeros(n), yl.legs(Y, "stroke")], axis=1)
+    crushing = moved < 0
+    return np.sum(np.where(crushing & (axial < below), -moved, 0.0), axis=1)
+
+
+def final_order(scene):
+    """(errors of the final position over the travel at ORDER_STEPS, fitted order)."""
+    xl = state_layout(len(scene.legs))
+    final = {dt: xl.get(rollout(scene, dt)[0], "position")[:, -1]
+             for dt in ORDER_STEPS + (REFERENCE_STEP,)}
+    ref = final[REFERENCE_STEP]
+    travel = np.linalg.norm(ref - initial_state(scene)[:3])
+    errors = np.array([np.linalg.norm(final[dt] - ref) / travel for dt in ORDER_STEPS])
+    return errors, float(np.polyfit(np.log(ORDER_STEPS), np.log(errors), 1)[0])
+
+
+def main():
+    damped = load_scene(DAMPED)
+    print(f"damped lander after t = {SETTLED} s ({damped.hysteresis} law):")
+    print("  dt [ms]  largest force jump / mean force   std of vertical acceleration [m/s²]")
+    for dt in (1e-3, 5e-4):
+        jump, std = rest_measures(damped, dt)
+        print(f"  {dt * 1e3:7.2f}  {100 * jump:31.2f} %   {std:34.4f}")
+    lunar = load_scene(LUNAR)
+    print("\nlunar lander: stroke crushed while the axial force is below 2.9 kN [mm], per leg")
+    for law in ("sign", "memory"):
+        crushed = crushed_below(lunar.with_(hysteresis=law))
+        print(f"  {law:7s}" + "".join(f"{1e3 * c:9.1f}" for c in crushed))
+    print("\nfinal position against a 31.25-µs run (error over the travel), slip = 'midpoint'")
+    print("  scene            " + "".join(f"{dt * 1e3:>9.2f} ms" for dt in ORDER_STEPS)
+          + "   order")
+    for name, scene in (("lunar, memory", lunar.with_(hysteresis="memory", slip="midpoint")),
+                        ("lunar, sign", lunar.with_(slip="midpoint")),
+                        ("damped lander", damped)):
+        errors, order = final_order(scene)
+        print(f"  {name:16s} " + "".join(f"{e:12.2e}" for e in errors) + f"   {order:5.2f}")
+
+
+if __name__ == "__main__":
+    main()
