@@ -9,7 +9,10 @@ This module owns what a run leaves on disk and how it is read back:
 * ``trajectory.npz``: the same table as one float array ``data`` (modes as
   their codes), with ``columns``, ``units`` and ``metadata`` (a JSON string);
 * ``run.json``: the scene as loaded, method, Δt, duration, versions, the run's
-  events and warnings, and the column list with units.
+  events and warnings, and the column list with units;
+* ``trajectory.mat``: for MATLAB, each column as a variable of the CSV's name
+  (modes as codes, ``mode_names`` their words), ``units``, and run.json as the
+  struct ``run`` (``symcushion.matlab``, docs/toolchain.md).
 
 Every file is written through a temporary file in its own directory and moved
 into place by :func:`os.replace`, so a killed run leaves the previous complete
@@ -34,11 +37,12 @@ from .layout import MODES, output_columns, state_columns
 __all__ = ["trajectory_columns", "column_unit", "check_out_dir", "check_output_file",
            "result_dir", "atomic_write_text", "write_csv", "jsonable", "to_json", "replacing", "ResultWriter",
            "read_result", "versions",
-           "CSV_NAME", "NPZ_NAME", "JSON_NAME", "UNITS", "MODE_CODES"]
+           "CSV_NAME", "NPZ_NAME", "JSON_NAME", "MAT_NAME", "UNITS", "MODE_CODES"]
 
 CSV_NAME = "trajectory.csv"
 NPZ_NAME = "trajectory.npz"
 JSON_NAME = "run.json"
+MAT_NAME = "trajectory.mat"
 
 #: Unit suffixes of the column names, longest first so that ``_m_s2`` is not
 #: read as ``_s2``; ``1`` marks a dimensionless column.
@@ -271,7 +275,8 @@ class ResultWriter:
 
     Rows go to temporary files in the result directory as they come
     (:meth:`append`), so memory does not grow with the run; :meth:`finish`
-    writes ``run.json`` and moves every file into place with :func:`os.replace`;
+    writes ``run.json`` and ``trajectory.mat`` (one column in memory at a
+    time) and moves every file into place with :func:`os.replace`;
     :meth:`abort` (or an exception inside ``with``) removes the temporary files
     and leaves the previous results untouched.
 
@@ -311,12 +316,12 @@ class ResultWriter:
         self.rows += rows.shape[0]
 
     def finish(self, metadata: dict) -> dict:
-        """Close the files, write ``run.json`` and move everything into place.
+        """Close the files, write ``run.json`` and ``trajectory.mat``, move everything into place.
 
         Returns
         -------
         dict
-            Paths of ``csv``, ``npz`` and ``json``.
+            Paths of ``csv``, ``npz``, ``mat`` and ``json``.
         """
         metadata = dict(metadata, rows=self.rows,
                         columns=[{"name": c, "unit": column_unit(c)} for c in self.columns])
@@ -334,6 +339,7 @@ class ResultWriter:
                 os.replace(npz_tmp, files["npz"])
             finally:
                 npz_tmp.unlink(missing_ok=True)
+            files["mat"] = self._write_mat(metadata)
             atomic_write_text(files["json"], text + "\n")
         finally:
             self.abort()
@@ -355,6 +361,21 @@ class ResultWriter:
                                ("metadata", np.array(metadata_text))):
                 with zf.open(f"{key}.npy", "w") as member:
                     np.lib.format.write_array(member, value, allow_pickle=False)
+
+    def _write_mat(self, metadata: dict) -> Path:
+        """``trajectory.mat`` from the raw rows, read through a memory map (column by column)."""
+        from .matlab import write_table_mat
+
+        shape = (self.rows, len(self.columns))
+        rows = (np.memmap(self._raw_tmp, dtype=float, mode="r", shape=shape) if self.rows
+                else np.empty(shape))
+        try:
+            return write_table_mat(
+                self.directory / MAT_NAME, {c: rows[:, i] for i, c in enumerate(self.columns)},
+                metadata, "run", units={c: column_unit(c) for c in self.columns},
+                extra={"mode_names": [MODES[k] for k in sorted(MODES)]})
+        finally:
+            del rows        # close the map before the raw file is removed
 
     def abort(self):
         """Close and remove the temporary files (previous results stay)."""

@@ -15,6 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..matlab import write_table_mat
+from ..results import atomic_write_text
 from ..scene import Scene
 from .build import _dask_batch, build_envelope, DEFAULT_CACHE, run_batch
 from .cases import apply_design, case_params, initial_states, reach, SUMMARY
@@ -284,13 +286,18 @@ def _run_dask(study, tasks, libraries, x0, mu, p, x_end, summary, bar, scheduler
 
 
 def write_result(result: EnvelopeResult, out_dir, plots: bool = True) -> dict:
-    """Write ``cases.csv``, ``summary.json`` and (with ``plots``) the figures into ``out_dir``."""
+    """Write ``cases.csv``, ``cases.mat`` (for MATLAB, with the summary as the struct
+    ``summary``), ``summary.json`` and (with ``plots``) the figures into ``out_dir``,
+    each atomically."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    files = {"cases": out / "cases.csv", "summary": out / "summary.json"}
-    files["cases"].write_text(result.csv_text())
+    files = {"cases": out / "cases.csv", "cases_mat": out / "cases.mat",
+             "summary": out / "summary.json"}
+    atomic_write_text(files["cases"], result.csv_text())
     if plots:
         files.update(plot_envelope(result, out))
     result.files = files
-    files["summary"].write_text(json.dumps(result.summary(), indent=1))
+    summary = result.summary()
+    write_table_mat(files["cases_mat"], result.table(), summary, "summary")
+    atomic_write_text(files["summary"], json.dumps(summary, indent=1))
     return files
