@@ -135,7 +135,16 @@ def _cellstr(strings) -> np.ndarray:
     return cell
 
 
-def write_table_mat(path, columns: dict, metadata: dict | None = None,
+def _column(values) -> np.ndarray:
+    """A column as savemat writes it: numbers as double, strings as a cell array."""
+    if isinstance(values, np.ndarray) and values.dtype.kind in "fiub":
+        return values.astype(float, copy=False)
+    if all(isinstance(v, str) for v in values):
+        return _cellstr(values)
+    return np.asarray(values, dtype=float)
+
+
+def write_table_mat(path, columns, metadata: dict | None = None,
                     metadata_name: str = "run", units: dict | None = None,
                     extra: dict | None = None) -> Path:
     """Write a table's columns and metadata to a MAT file, atomically.
@@ -144,10 +153,11 @@ def write_table_mat(path, columns: dict, metadata: dict | None = None,
     ----------
     path : str or Path
         The MAT file (``.mat``), replaced whole or not at all.
-    columns : dict of str to array_like, each shape (k,)
+    columns : mapping of str to array_like, each shape (k,)
         The columns by their CSV names, in the CSV's order: numbers (written
-        as double) or strings (a cell array of char). Arrays may be views or
-        memory maps; each is converted on its own as it is written.
+        as double) or strings (a cell array of char). Each is looked up,
+        written and dropped in turn, so a mapping that reads its columns from
+        disk keeps one column in memory.
     metadata : dict, optional
         JSON-like metadata: written as the struct ``metadata_name`` and as its
         JSON text ``metadata_name + "_json"``.
@@ -172,25 +182,19 @@ def write_table_mat(path, columns: dict, metadata: dict | None = None,
     if clash:
         raise ValueError(f"column(s) {clash} would overwrite the MAT file's own variables "
                          f"{sorted(reserved)}; rename the column(s).")
-    content = {}
-    for name, var in zip(names, variables):
-        col = columns[name]
-        if isinstance(col, np.ndarray) and col.dtype.kind in "fiub":
-            content[var] = col.astype(float, copy=False)
-        elif all(isinstance(v, str) for v in col):
-            content[var] = _cellstr(col)
-        else:
-            content[var] = np.asarray(col, dtype=float)
-    content["columns"], content["variables"] = _cellstr(names), _cellstr(variables)
+    rest = {"columns": _cellstr(names), "variables": _cellstr(variables)}
     if units is not None:
-        content["units"] = {var: str(units[name]) for name, var in zip(names, variables)}
-    content.update({name: to_matlab(value) for name, value in extra.items()})
+        rest["units"] = {var: str(units[name]) for name, var in zip(names, variables)}
+    rest.update({name: to_matlab(value) for name, value in extra.items()})
     if metadata is not None:
         text = to_json(metadata)
-        content[metadata_name] = to_matlab(json.loads(text))
-        content[metadata_name + "_json"] = text
+        rest[metadata_name] = to_matlab(json.loads(text))
+        rest[metadata_name + "_json"] = text
+    options = dict(format="5", long_field_names=True, oned_as="column", do_compression=True)
     path = Path(path)
-    with replacing(path) as tmp:
-        scipy.io.savemat(tmp, content, format="5", long_field_names=True, oned_as="column",
-                         do_compression=True)
+    with replacing(path) as tmp, open(tmp, "wb") as fh:
+        # savemat on an open file appends its variables (the header only at the start)
+        for name, var in zip(names, variables):
+            scipy.io.savemat(fh, {var: _column(columns[name])}, **options)
+        scipy.io.savemat(fh, rest, **options)
     return path

@@ -12,7 +12,8 @@ This module owns what a run leaves on disk and how it is read back:
   events and warnings, and the column list with units;
 * ``trajectory.mat``: for MATLAB, each column as a variable of the CSV's name
   (modes as codes, ``mode_names`` their words), ``units``, and run.json as the
-  struct ``run`` (``symcushion.matlab``, docs/toolchain.md).
+  struct ``run`` (``symcushion.matlab``, docs/toolchain.md); written from a
+  column-major copy of the rows, one column in memory at a time.
 
 Every file is written through a temporary file in its own directory and moved
 into place by :func:`os.replace`, so a killed run leaves the previous complete
@@ -27,6 +28,7 @@ import os
 import platform
 import tempfile
 import zipfile
+from collections.abc import Mapping
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -53,6 +55,10 @@ MODE_CODES = {word: code for code, word in MODES.items()}
 
 #: Bytes copied at a time from the raw row file into the NPZ (bounded memory).
 _COPY_CHUNK = 1 << 20
+
+#: Bytes of raw rows turned into columns at a time for the MAT file (bounded
+#: memory; larger blocks mean fewer, longer writes).
+_TRANSPOSE_CHUNK = 8 << 20
 
 
 
@@ -363,19 +369,17 @@ class ResultWriter:
                     np.lib.format.write_array(member, value, allow_pickle=False)
 
     def _write_mat(self, metadata: dict) -> Path:
-        """``trajectory.mat`` from the raw rows, read through a memory map (column by column)."""
+        """``trajectory.mat`` from the raw rows, one column in memory at a time."""
         from .matlab import write_table_mat
 
-        shape = (self.rows, len(self.columns))
-        rows = (np.memmap(self._raw_tmp, dtype=float, mode="r", shape=shape) if self.rows
-                else np.empty(shape))
+        columns = _ColumnFile(self._raw_tmp, self.rows, self.columns,
+                              self.directory / MAT_NAME)
         try:
-            return write_table_mat(
-                self.directory / MAT_NAME, {c: rows[:, i] for i, c in enumerate(self.columns)},
-                metadata, "run", units={c: column_unit(c) for c in self.columns},
-                extra={"mode_names": [MODES[k] for k in sorted(MODES)]})
+            return write_table_mat(self.directory / MAT_NAME, columns, metadata, "run",
+                                   units={c: column_unit(c) for c in self.columns},
+                                   extra={"mode_names": [MODES[k] for k in sorted(MODES)]})
         finally:
-            del rows        # close the map before the raw file is removed
+            columns.path.unlink(missing_ok=True)
 
     def abort(self):
         """Close and remove the temporary files (previous results stay)."""
@@ -386,6 +390,42 @@ class ResultWriter:
             fh.close()
         for tmp in (self._csv_tmp, self._raw_tmp):
             tmp.unlink(missing_ok=True)
+
+
+class _ColumnFile(Mapping):
+    """The columns of a raw row file (rows × columns, float64, row-major), read one at a time.
+
+    A column-major copy is written beside ``near`` block by block
+    (:data:`_TRANSPOSE_CHUNK` bytes of rows at a time), so that a column is
+    one contiguous read and no more than a block and a column are ever in memory.
+    """
+
+    def __init__(self, raw: Path, rows: int, names, near: Path):
+        self.names, self.rows = list(names), rows
+        width = len(self.names)
+        fh, self.path = _temporary(near, "wb")
+        try:
+            with fh, open(raw, "rb") as src:
+                fh.truncate(rows * width * 8)
+                block = max(1, _TRANSPOSE_CHUNK // (8 * width))
+                for start in range(0, rows, block):
+                    chunk = np.fromfile(src, dtype=float, count=block * width).reshape(-1, width)
+                    for i in range(width):
+                        fh.seek((i * rows + start) * 8)
+                        fh.write(np.ascontiguousarray(chunk[:, i]).tobytes())
+        except BaseException:
+            self.path.unlink(missing_ok=True)
+            raise
+
+    def __getitem__(self, name) -> np.ndarray:
+        i = self.names.index(name)
+        return np.fromfile(self.path, dtype=float, count=self.rows, offset=i * self.rows * 8)
+
+    def __iter__(self):
+        return iter(self.names)
+
+    def __len__(self) -> int:
+        return len(self.names)
 
 
 # ---------------------------------------------------------------------------
