@@ -13,8 +13,8 @@ an envelope's ``cases.csv``) and its JSON metadata (``run.json``,
 * optionally ``units``, a struct of each variable's unit (``units.time_s`` is
   ``'s'``);
 * the metadata as a struct (:func:`to_matlab`: objects become structs, lists
-  of numbers arrays, other lists cell arrays, null ``[]``) and, verbatim, as
-  its JSON text (``<name>_json``, for ``jsondecode``).
+  of numbers arrays, other lists cell arrays, null ``[]``) and as JSON text
+  (``<name>_json``, for ``jsondecode``).
 
 Files are written atomically, through a temporary file and ``os.replace``. It
 must not run or read simulations; ``symcushion.results`` and the envelope
