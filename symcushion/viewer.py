@@ -8,7 +8,7 @@ plots whose time marker follows the slider. plotly.js is embedded, so the
 page opens without a network. The page honours a URL fragment ``#t=0.12``
 (seconds): it shows the frame nearest that time, at load and whenever the
 fragment changes (:data:`TIME_HOOK`), which lets a headless browser take a
-screenshot at a chosen time (:func:`screenshot`).
+screenshot at a chosen time (:func:`screenshots`, through ``symcushion.chromium``).
 
 It reads a result folder (``trajectory.npz`` or ``.csv`` and ``run.json``,
 whose scene gives the hinges and the obstacles) and draws the geometry
@@ -17,18 +17,15 @@ with ``symcushion.animate``'s helpers; it must not simulate.
 from __future__ import annotations
 
 import json
-import os
-import shutil
-import subprocess
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from .animate import ARROW_FRACTION, MODE_COLORS, _bounds, _hinges, _surface, frame_indices
+from .chromium import BROWSERS, Chromium, browser
 from .results import JSON_NAME, check_output_file
 
-__all__ = ["load_run", "viewer_figure", "write_viewer", "screenshots", "browser",
+__all__ = ["load_run", "viewer_figure", "write_viewer", "screenshots",
            "DEFAULT_VIEW_FRAMES", "MAX_PLOT_POINTS", "VIEWER_NAME", "TIME_HOOK", "INSTALL_HINT"]
 
 #: Frames of the slider: every frame holds the 3-D traces' data, and 200 keep
@@ -56,9 +53,6 @@ CAMERA_EYE = dict(x=0.95, y=-1.65, z=0.62)
 
 #: Browser window of a screenshot (px): the 3-D view and four plots side by side.
 SCREENSHOT_SIZE = (1400, 800)
-
-#: Chromium executables looked up on the PATH, in order.
-BROWSERS = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
 
 #: JavaScript run after the plot is drawn: ``#t=SECONDS`` shows the frame nearest that
 #: time and moves the slider there; the div's ``data-frame`` attribute then holds the
@@ -348,109 +342,6 @@ def write_viewer(result_dir, out=None, frames: int = DEFAULT_VIEW_FRAMES) -> Pat
     return atomic_write_text(out, html)
 
 
-def browser() -> str | None:
-    """Path of a Chromium-family browser on the PATH (:data:`BROWSERS`), or None."""
-    for candidate in BROWSERS:
-        path = shutil.which(candidate)
-        if path:
-            return path
-    return None
-
-
-class _Chromium:
-    """Headless Chromium driven over ``--remote-debugging-pipe`` (the DevTools protocol).
-
-    Commands are JSON messages ending in a NUL byte, written to the browser's
-    fd 3; replies and events come back on its fd 4. One browser loads the page
-    once and takes every screenshot.
-    """
-
-    def __init__(self, exe: str, url: str, size, timeout: float):
-        import fcntl
-
-        self.timeout, self.next_id, self.buffer = timeout, 0, b""
-        to_browser, from_browser = os.pipe(), os.pipe()
-        # high copies, so that placing them on 3 and 4 in the child cannot clobber either
-        self.child_ends = [fcntl.fcntl(to_browser[0], fcntl.F_DUPFD, 100),
-                           fcntl.fcntl(from_browser[1], fcntl.F_DUPFD, 100)]
-        for fd in (to_browser[0], from_browser[1]):
-            os.close(fd)
-        self.write_fd, self.read_fd = to_browser[1], from_browser[0]
-        self.profile = tempfile.TemporaryDirectory(prefix="symcushion-chromium-")
-        reader, writer = self.child_ends
-
-        def place_pipes():
-            os.dup2(reader, 3)
-            os.dup2(writer, 4)
-
-        self.process = subprocess.Popen(
-            [exe, "--headless", "--remote-debugging-pipe", "--no-sandbox",
-             "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--hide-scrollbars",
-             "--no-first-run", "--mute-audio", f"--user-data-dir={self.profile.name}",
-             f"--window-size={size[0]},{size[1]}", "about:blank"],
-            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-            pass_fds=(3, 4), preexec_fn=place_pipes)
-        for fd in self.child_ends:
-            os.close(fd)
-        pages = [t for t in self.send("Target.getTargets")["targetInfos"] if t["type"] == "page"]
-        if not pages:
-            raise RuntimeError(f"{exe} opened no page for {url}.")
-        self.session = self.send("Target.attachToTarget", targetId=pages[0]["targetId"],
-                                 flatten=True)["sessionId"]
-        # the window's size is not the page's in headless mode: set the viewport itself
-        self.send("Emulation.setDeviceMetricsOverride", self.session, width=int(size[0]),
-                  height=int(size[1]), deviceScaleFactor=1, mobile=False)
-        # answered once the page's document is committed: evaluations then run in it
-        self.send("Page.navigate", self.session, url=url)
-
-    def send(self, method: str, session: str | None = None, **params) -> dict:
-        """Send one command and wait for its reply (events in between are dropped)."""
-        import select
-        import time
-
-        self.next_id += 1
-        message = {"id": self.next_id, "method": method, "params": params}
-        if session:
-            message["sessionId"] = session
-        os.write(self.write_fd, json.dumps(message).encode() + b"\0")
-        deadline = time.monotonic() + self.timeout
-        while True:
-            while b"\0" in self.buffer:
-                raw, self.buffer = self.buffer.split(b"\0", 1)
-                reply = json.loads(raw)
-                if reply.get("id") == self.next_id:
-                    if "error" in reply:
-                        raise RuntimeError(f"the browser refused {method}: {reply['error']}")
-                    return reply["result"]
-            left = deadline - time.monotonic()
-            if left <= 0 or not select.select([self.read_fd], [], [], left)[0]:
-                raise TimeoutError(f"the browser did not answer {method} within "
-                                   f"{self.timeout:g} s.")
-            chunk = os.read(self.read_fd, 1 << 20)
-            if not chunk:
-                raise RuntimeError(f"the browser closed while running {method}.")
-            self.buffer += chunk
-
-    def evaluate(self, expression: str):
-        """Value of a JavaScript expression in the page (a promise is awaited)."""
-        result = self.send("Runtime.evaluate", self.session, expression=expression,
-                           awaitPromise=True, returnByValue=True)
-        if "exceptionDetails" in result:
-            raise RuntimeError(f"the page raised: {result['exceptionDetails']}")
-        return result["result"].get("value")
-
-    def close(self):
-        for fd in (self.write_fd, self.read_fd):
-            os.close(fd)
-        self.process.terminate()
-        try:
-            self.process.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            self.process.kill()
-            self.process.wait()
-        self.profile.cleanup()
-
-
 #: JavaScript: resolves with the frame the page shows once the time hook has set it,
 #: after two animation frames (the WebGL scene is drawn).
 _SHOWN = """new Promise(function (done) {
@@ -495,11 +386,6 @@ def screenshots(page, times, pngs, size=SCREENSHOT_SIZE, timeout: float = 120.0)
 
     from .results import replacing
 
-    exe = browser()
-    if exe is None:
-        raise FileNotFoundError(f"no Chromium found on the PATH (looked for "
-                                f"{', '.join(BROWSERS)}); install one, e.g. "
-                                "apt-get install chromium.")
     page = Path(page).resolve()
     if not page.is_file():
         raise FileNotFoundError(f"`page` {str(page)!r} does not exist; write it with "
@@ -507,9 +393,13 @@ def screenshots(page, times, pngs, size=SCREENSHOT_SIZE, timeout: float = 120.0)
     times, pngs = [float(t) for t in times], [check_output_file(p, "pngs") for p in pngs]
     if len(times) != len(pngs):
         raise ValueError(f"`times` and `pngs` must have the same length, got {len(times)} "
-                         f"and {len(pngs)}.")
-    chrome = _Chromium(exe, page.as_uri(), size, timeout)
-    try:
+                         f"and {len(pngs)}; give one file per time.")
+    exe = browser()
+    if exe is None:
+        raise FileNotFoundError(f"no Chromium found on the PATH (looked for "
+                                f"{', '.join(BROWSERS)}); install one, e.g. "
+                                "apt-get install chromium.")
+    with Chromium(exe, page.as_uri(), size, timeout) as chrome:
         chrome.evaluate(_SHOWN)                 # loaded and drawn
         frames = []
         for t, png in zip(times, pngs):
@@ -519,6 +409,4 @@ def screenshots(page, times, pngs, size=SCREENSHOT_SIZE, timeout: float = 120.0)
             shot = chrome.send("Page.captureScreenshot", chrome.session, format="png")
             with replacing(png) as tmp:
                 tmp.write_bytes(base64.b64decode(shot["data"]))
-    finally:
-        chrome.close()
     return frames

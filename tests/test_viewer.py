@@ -16,6 +16,7 @@ plotly = pytest.importorskip("plotly", reason="the viewer needs the optional ext
                                               "symcushion[viewer] (plotly)")
 
 from symcushion import viewer  # noqa: E402
+from symcushion.chromium import browser  # noqa: E402
 
 #: Screenshot window of the browser test (px): smaller than the default, quicker to draw.
 TEST_SIZE = (1100, 700)
@@ -137,7 +138,19 @@ def test_missing_plotly_says_how_to_install_it(tutorial_result, monkeypatch, cap
     assert "pip install 'symcushion[viewer]'" in capsys.readouterr().err
 
 
-@pytest.mark.skipif(viewer.browser() is None,
+def test_screenshot_arguments_are_checked(page, tmp_path, monkeypatch):
+    with pytest.raises(FileNotFoundError, match="`page` .*nowhere.html.* does not exist"):
+        viewer.screenshots(tmp_path / "nowhere.html", [0.1], [tmp_path / "a.png"])
+    with pytest.raises(ValueError, match="`times` and `pngs` must have the same length, got 2 "
+                                         "and 1; give one file per time"):
+        viewer.screenshots(page, [0.1, 0.2], [tmp_path / "a.png"])
+    monkeypatch.setattr(viewer, "browser", lambda: None)
+    with pytest.raises(FileNotFoundError, match="no Chromium found .*apt-get install chromium"):
+        viewer.screenshots(page, [0.1], [tmp_path / "a.png"])
+    assert not (tmp_path / "a.png").exists()
+
+
+@pytest.mark.skipif(browser() is None,
                     reason="no Chromium on the PATH (apt-get install chromium)")
 def test_screenshots_in_headless_chromium_step_the_slider(page, run, tmp_path):
     from PIL import Image
@@ -164,3 +177,21 @@ def test_screenshots_in_headless_chromium_step_the_slider(page, run, tmp_path):
     for a, b in ((0, 1), (1, 2), (0, 2)):
         changed = np.abs(images[a][scene_view] - images[b][scene_view]).sum(axis=2) > 30
         assert changed.mean() > MIN_CHANGED, (SHOT_TIMES[a], SHOT_TIMES[b])
+
+
+@pytest.mark.skipif(browser() is None,
+                    reason="no Chromium on the PATH (apt-get install chromium)")
+def test_chromium_runs_javascript_and_reports_failures(tmp_path):
+    from symcushion.chromium import Chromium
+
+    page = tmp_path / "page.html"
+    page.write_text("<html><body><p id='p'>hello</p></body></html>")
+    with Chromium(browser(), page.as_uri(), (400, 300), timeout=60) as chrome:
+        assert chrome.evaluate("document.getElementById('p').textContent") == "hello"
+        assert chrome.evaluate("new Promise(r => setTimeout(() => r(6 * 7), 10))") == 42
+        with pytest.raises(RuntimeError, match="the page raised: ReferenceError: undefinedName"):
+            chrome.evaluate("undefinedName.field")
+        with pytest.raises(RuntimeError, match="the browser refused No.such"):
+            chrome.send("No.such")
+        process = chrome.process
+    assert process.poll() is not None                       # ended on leaving the block
