@@ -251,7 +251,7 @@ def viewer_figure(traj, scene, frames: int = DEFAULT_VIEW_FRAMES, name: str | No
     for i, (title, lines) in enumerate(channels, start=1):
         for j, (label, values) in enumerate(lines):
             fig.add_trace(go.Scatter(x=traj.t[::stride], y=values[::stride], mode="lines",
-                                     name=label, legendgroup=f"channel{i}", showlegend=i == 4,
+                                     name=label, showlegend=len(lines) > 1,
                                      line=dict(width=1.4, color=palette[j % len(palette)])),
                           row=i, col=2)
         both = np.concatenate([v for _, v in lines])

@@ -89,6 +89,20 @@ def test_frames_follow_the_run(run):
                                P / np.linalg.norm(P, axis=1)[:, None])
 
 
+def test_long_runs_plot_every_kth_row(run, monkeypatch):
+    traj, scene = run
+    monkeypatch.setattr(viewer, "MAX_PLOT_POINTS", 50)
+    fig = viewer.viewer_figure(traj, scene, frames=2)
+    (height,) = trace_named(fig, "body z")
+    stride = -(-len(traj.t) // 50)                           # 301 rows: every 7th
+    np.testing.assert_array_equal(height.x, traj.t[::stride])
+    np.testing.assert_array_equal(height.y, traj.position[::stride, 2])
+    assert len(height.x) <= 50
+    # a plot of one line is named by its axis; the strokes' legs are in the legend
+    assert height.showlegend is False
+    assert [t.name for t in fig.data if t.showlegend] == ["leg 0", "leg 1", "leg 2"]
+
+
 @pytest.mark.parametrize("obstacle, height", [
     (Plane.inclined(0.0873), lambda x, y: -np.tan(0.0873) * x),
     (Sphere(center=(0.0, 0.0, -1.0), radius=1.2),
