@@ -1,4 +1,4 @@
-"""Command line: ``symcushion reproduce | simulate | check | plot | codegen | optimise | envelope | design``.
+"""Command line: ``symcushion reproduce | simulate | check | plot | view | codegen | optimise | envelope | design``.
 
 Each sub-command is a thin layer over the public API; it parses arguments,
 reports progress and turns library errors into one-line messages.
@@ -457,7 +457,7 @@ def _parser() -> argparse.ArgumentParser:
     p = sub.add_parser("simulate", help="simulate a scene file: trajectory, figures, animation",
                        description="Simulate a scene TOML file. Writes OUT/<scene name>/: "
                        "trajectory.csv (columns named owner_quantity_axis_unit), "
-                       "trajectory.npz, run.json (scene, versions, events, warnings), "
+                       "trajectory.npz, trajectory.mat, run.json (scene, versions, events, warnings), "
                        "summary.png and animation.gif.")
     p.add_argument("scene", type=Path, help="scene TOML file (docs/scenes.md)")
     p.add_argument("--out", type=Path, default=Path("out"), metavar="DIR",
@@ -508,6 +508,7 @@ def _parser() -> argparse.ArgumentParser:
 
     _add_study_commands(sub)
     _add_design_command(sub)
+    _add_view_command(sub)
     return parser
 
 
@@ -597,6 +598,31 @@ def _add_design_command(sub):
                    help="cache of compiled Functions (default: build/robust, build/envelope)")
     _add_overwrite(p)
     p.set_defaults(func=_cmd_design)
+
+
+def _cmd_view(args):
+    from .viewer import DEFAULT_VIEW_FRAMES, write_viewer
+
+    try:
+        path = write_viewer(args.result, args.out)
+    except ImportError as exc:          # plotly missing: say how to install it
+        print(f"symcushion view: error: {exc}", file=sys.stderr)
+        return 2
+    print(f"wrote {path} (at most {DEFAULT_VIEW_FRAMES} frames; opens without a network)")
+    return 0
+
+
+def _add_view_command(sub):
+    """The view sub-command (the interactive viewer of a run, docs/tutorial.md)."""
+    p = sub.add_parser("view", help="write an interactive 3-D viewer (one HTML page) of a "
+                       "result folder", description="Write a self-contained HTML page of a "
+                       "run: 3-D body, legs, feet, forces and obstacle, a time slider, and the "
+                       "main channels (needs the extra: pip install 'symcushion[viewer]').")
+    p.add_argument("result", type=Path, metavar="RESULT_DIR",
+                   help="folder written by simulate (OUT/<scene name>)")
+    p.add_argument("--out", type=Path, default=None, metavar="FILE.html",
+                   help="the page (default: RESULT_DIR/viewer.html)")
+    p.set_defaults(func=_cmd_view)
 
 
 class Terminated(SystemExit):

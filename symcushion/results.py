@@ -9,7 +9,11 @@ This module owns what a run leaves on disk and how it is read back:
 * ``trajectory.npz``: the same table as one float array ``data`` (modes as
   their codes), with ``columns``, ``units`` and ``metadata`` (a JSON string);
 * ``run.json``: the scene as loaded, method, Δt, duration, versions, the run's
-  events and warnings, and the column list with units.
+  events and warnings, and the column list with units;
+* ``trajectory.mat``: for MATLAB, each column as a variable of the CSV's name
+  (modes as codes, ``mode_names`` their words), ``units``, and run.json as the
+  struct ``run`` (``symcushion.matlab``, docs/toolchain.md); written from a
+  column-major copy of the rows, one column in memory at a time.
 
 Every file is written through a temporary file in its own directory and moved
 into place by :func:`os.replace`, so a killed run leaves the previous complete
@@ -24,6 +28,7 @@ import os
 import platform
 import tempfile
 import zipfile
+from collections.abc import Mapping
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -34,14 +39,15 @@ from .layout import MODES, output_columns, state_columns
 __all__ = ["trajectory_columns", "column_unit", "check_out_dir", "check_output_file",
            "result_dir", "atomic_write_text", "write_csv", "jsonable", "to_json", "replacing", "ResultWriter",
            "read_result", "versions", "OutputExists", "claim_output", "remove_stale",
-           "CSV_NAME", "NPZ_NAME", "JSON_NAME", "RUN_FILES", "UNITS", "MODE_CODES"]
+           "CSV_NAME", "NPZ_NAME", "JSON_NAME", "MAT_NAME", "RUN_FILES", "UNITS", "MODE_CODES"]
 
 CSV_NAME = "trajectory.csv"
 NPZ_NAME = "trajectory.npz"
 JSON_NAME = "run.json"
+MAT_NAME = "trajectory.mat"
 #: Every file a ``simulate`` run writes into its result folder: the ones it
 #: refuses to replace without ``--overwrite``, and the only ones it removes.
-RUN_FILES = (CSV_NAME, NPZ_NAME, JSON_NAME, "summary.png", "animation.gif")
+RUN_FILES = (CSV_NAME, NPZ_NAME, JSON_NAME, MAT_NAME, "summary.png", "animation.gif")
 
 #: Unit suffixes of the column names, longest first so that ``_m_s2`` is not
 #: read as ``_s2``; ``1`` marks a dimensionless column.
@@ -52,6 +58,10 @@ MODE_CODES = {word: code for code, word in MODES.items()}
 
 #: Bytes copied at a time from the raw row file into the NPZ (bounded memory).
 _COPY_CHUNK = 1 << 20
+
+#: Bytes of raw rows turned into columns at a time for the MAT file (bounded
+#: memory; larger blocks mean fewer, longer writes).
+_TRANSPOSE_CHUNK = 8 << 20
 
 
 
@@ -347,7 +357,8 @@ class ResultWriter:
 
     Rows go to temporary files in the result directory as they come
     (:meth:`append`), so memory does not grow with the run; :meth:`finish`
-    writes ``run.json`` and moves every file into place with :func:`os.replace`;
+    writes ``run.json`` and ``trajectory.mat`` (one column in memory at a
+    time) and moves every file into place with :func:`os.replace`;
     :meth:`abort` (or an exception inside ``with``) removes the temporary files
     and leaves the previous results untouched.
 
@@ -406,7 +417,7 @@ class ResultWriter:
                       float(rows[-1, 0]))
 
     def finish(self, metadata: dict) -> dict:
-        """Close the files, write ``run.json`` and move everything into place.
+        """Close the files, write ``run.json`` and ``trajectory.mat``, move everything into place.
 
         Only completely appended rows are kept: after an interrupt that fell
         inside :meth:`append`, the files end at the block before, so a run
@@ -415,7 +426,7 @@ class ResultWriter:
         Returns
         -------
         dict
-            Paths of ``csv``, ``npz`` and ``json``.
+            Paths of ``csv``, ``npz``, ``mat`` and ``json``.
         """
         if self._done:
             raise ValueError("this ResultWriter was already finished or aborted; start a new "
@@ -439,6 +450,7 @@ class ResultWriter:
                 os.replace(npz_tmp, files["npz"])
             finally:
                 npz_tmp.unlink(missing_ok=True)
+            files["mat"] = self._write_mat(metadata)
             atomic_write_text(files["json"], text + "\n")
         finally:
             self.abort()
@@ -461,6 +473,19 @@ class ResultWriter:
                 with zf.open(f"{key}.npy", "w") as member:
                     np.lib.format.write_array(member, value, allow_pickle=False)
 
+    def _write_mat(self, metadata: dict) -> Path:
+        """``trajectory.mat`` from the raw rows, one column in memory at a time."""
+        from .matlab import write_table_mat
+
+        columns = _ColumnFile(self._raw_tmp, self.rows, self.columns,
+                              self.directory / MAT_NAME)
+        try:
+            return write_table_mat(self.directory / MAT_NAME, columns, metadata, "run",
+                                   units={c: column_unit(c) for c in self.columns},
+                                   extra={"mode_names": [MODES[k] for k in sorted(MODES)]})
+        finally:
+            columns.path.unlink(missing_ok=True)
+
     def abort(self):
         """Close and remove the temporary files (previous results stay)."""
         if self._done:
@@ -470,6 +495,42 @@ class ResultWriter:
             fh.close()
         for tmp in (self._csv_tmp, self._raw_tmp):
             tmp.unlink(missing_ok=True)
+
+
+class _ColumnFile(Mapping):
+    """The columns of a raw row file (rows × columns, float64, row-major), read one at a time.
+
+    A column-major copy is written beside ``near`` block by block
+    (:data:`_TRANSPOSE_CHUNK` bytes of rows at a time), so that a column is
+    one contiguous read and no more than a block and a column are ever in memory.
+    """
+
+    def __init__(self, raw: Path, rows: int, names, near: Path):
+        self.names, self.rows = list(names), rows
+        width = len(self.names)
+        fh, self.path = _temporary(near, "wb")
+        try:
+            with fh, open(raw, "rb") as src:
+                fh.truncate(rows * width * 8)
+                block = max(1, _TRANSPOSE_CHUNK // (8 * width))
+                for start in range(0, rows, block):
+                    chunk = np.fromfile(src, dtype=float, count=block * width).reshape(-1, width)
+                    for i in range(width):
+                        fh.seek((i * rows + start) * 8)
+                        fh.write(np.ascontiguousarray(chunk[:, i]).tobytes())
+        except BaseException:
+            self.path.unlink(missing_ok=True)
+            raise
+
+    def __getitem__(self, name) -> np.ndarray:
+        i = self.names.index(name)
+        return np.fromfile(self.path, dtype=float, count=self.rows, offset=i * self.rows * 8)
+
+    def __iter__(self):
+        return iter(self.names)
+
+    def __len__(self) -> int:
+        return len(self.names)
 
 
 # ---------------------------------------------------------------------------

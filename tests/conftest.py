@@ -106,3 +106,20 @@ def dask_scheduler(tmp_path_factory):
                 proc.wait(timeout=20)
             except subprocess.TimeoutExpired:
                 proc.kill()
+
+
+#: Simulated time of the shared tutorial run (s): both touchdowns, the crush and a lift-off.
+TUTORIAL_RUN_DURATION = "0.3"
+
+
+@pytest.fixture(scope="session")
+def tutorial_result(tmp_path_factory):
+    """The result folder of ``symcushion simulate studies/tutorial/lander.toml`` (0.3 s, no
+    figures): trajectory.csv, .npz, .mat and run.json of a three-legged lander on a 5° plane."""
+    from symcushion.cli import main
+
+    out = tmp_path_factory.mktemp("tutorial")
+    code = main(["simulate", str(STUDIES / "tutorial" / "lander.toml"), "--out", str(out),
+                 "--duration", TUTORIAL_RUN_DURATION, "--no-plots"])
+    assert code == 0
+    return out / "lander"

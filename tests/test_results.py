@@ -208,7 +208,7 @@ def test_failed_write_keeps_the_previous_files(tmp_path):
             raise RuntimeError("killed while writing")
     assert {k: p.read_bytes() for k, p in files.items()} == before
     assert sorted(p.name for p in (tmp_path / "drop").iterdir()) == sorted(
-        ["trajectory.csv", "trajectory.npz", JSON_NAME])
+        ["trajectory.csv", "trajectory.npz", "trajectory.mat", JSON_NAME])
 
 
 def test_to_dataframe_says_how_to_get_pandas(monkeypatch):

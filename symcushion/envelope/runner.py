@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..matlab import write_table_mat
 from ..results import atomic_write_text, replacing
 from ..scene import Scene
 from .build import _dask_batch, _safe, build_envelope, DEFAULT_CACHE, run_batch
@@ -194,7 +195,7 @@ class _Batches:
 def output_names(study: EnvelopeStudy) -> tuple:
     """Names of every file and folder a study writes into its output folder."""
     name = _safe(study.name)                # as the figures name their files
-    return ("cases.csv", "summary.json", f"{name}.png", f"{name}_pstable.png",
+    return ("cases.csv", "cases.mat", "summary.json", f"{name}.png", f"{name}_pstable.png",
             f"{name}_pstable.csv", f"{name}_distributions.png", BATCH_DIR)
 
 
@@ -389,16 +390,18 @@ def _run_dask(study, tasks, todo, libraries, x0, mu, p, done, bar, scheduler,
 
 
 def write_result(result: EnvelopeResult, out_dir, plots: bool = True) -> dict:
-    """Write ``cases.csv``, ``summary.json`` and (with ``plots``) the figures into ``out_dir``.
-
-    Each file is written atomically (a temporary file moved into place).
-    """
+    """Write ``cases.csv``, ``cases.mat`` (for MATLAB, with the summary as the struct
+    ``summary``), ``summary.json`` and (with ``plots``) the figures into ``out_dir``,
+    each atomically."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    files = {"cases": out / "cases.csv", "summary": out / "summary.json"}
+    files = {"cases": out / "cases.csv", "cases_mat": out / "cases.mat",
+             "summary": out / "summary.json"}
     atomic_write_text(files["cases"], result.csv_text())
     if plots:
         files.update(plot_envelope(result, out))
     result.files = files
-    atomic_write_text(files["summary"], json.dumps(result.summary(), indent=1))
+    summary = result.summary()
+    write_table_mat(files["cases_mat"], result.table(), summary, "summary")
+    atomic_write_text(files["summary"], json.dumps(summary, indent=1))
     return files

@@ -97,16 +97,22 @@ class EnvelopeResult:
         Numbers are written with ``repr`` (shortest round-trip form), so equal
         results give equal bytes.
         """
-        names = list(VARIABLES) + [k for k in self.columns if k not in ("class", "stable")]
-        data = [self.conditions[k] for k in VARIABLES] + [self.columns[k] for k in names[
-            len(VARIABLES):]]
+        table = self.table()
+        numbers = [col for name, col in table.items() if name not in ("case", "class")]
         buf = io.StringIO()
         writer = csv.writer(buf, lineterminator="\n")
-        writer.writerow(["case"] + names + ["class"])
+        writer.writerow(list(table))
         for i in range(self.n):
-            writer.writerow([i] + [repr(float(col[i])) for col in data]
-                            + [self.columns["class"][i]])
+            writer.writerow([i] + [repr(float(col[i])) for col in numbers]
+                            + [table["class"][i]])
         return buf.getvalue()
+
+    def table(self) -> dict:
+        """The columns of ``cases.csv`` in its order: ``case``, conditions, measures,
+        margins, ``class`` (arrays of shape (n,); ``class`` holds words)."""
+        measures = [k for k in self.columns if k not in ("class", "stable")]
+        return {"case": np.arange(self.n), **{k: self.conditions[k] for k in VARIABLES},
+                **{k: self.columns[k] for k in measures}, "class": self.columns["class"]}
 
     def summary(self) -> dict:
         """The summary JSON: study, counts, P(stable) overall and per slope bin, timings."""
