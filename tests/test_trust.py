@@ -68,7 +68,8 @@ def test_overwrite_removes_only_the_stale_files_it_owns(tmp_path):
     (folder / "notes.md").write_text("mine")
     assert simulate(FIG3, "--out", out, "--duration", "0.03", "--overwrite") == 0
     assert sorted(p.name for p in folder.iterdir()) == ["notes.md", "run.json",
-                                                        "trajectory.csv", "trajectory.npz"]
+                                                        "trajectory.csv", "trajectory.mat",
+                                                        "trajectory.npz"]
     assert json.loads((folder / "run.json").read_text())["rows"] == 31
 
 
