@@ -148,7 +148,9 @@ def relaxed_deflection(curve: Curve, x0, s, mean_rate0, dt, theta=None):
     elastic = memory_force(curve, x, s, theta) if curve.has_memory else curve._loading(x, th_load)
     residual = elastic + damper_force(
         curve, end_rate(x, x0, mean_rate0, dt))                        # (A4)
-    newton = x - residual / ca.jacobian(residual, x)
+    slope = ca.jacobian(residual, x)
+    # a pure orifice damper has no slope where it carries no force: stay there
+    newton = x - ca.if_else(slope > 0, residual / ca.if_else(slope > 0, slope, 1.0), 0.0)
     x1 = x0
     for _ in range(RELAX_NEWTON_STEPS):
         x1 = ca.substitute(newton, x, x1)

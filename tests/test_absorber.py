@@ -8,7 +8,7 @@ import pytest
 from symcushion import absorber
 from symcushion.characteristics import Crushable, Linear, PiecewiseLinear
 from symcushion.layout import output_layout, state_layout
-from symcushion.scene import load_scene
+from symcushion.scene import load_scene, read_toml, scene_from_dict
 from symcushion.touchdown import build_model, initial_state
 
 from conftest import STUDIES
@@ -208,3 +208,112 @@ def test_the_damped_lander_comes_to_rest_without_chatter():
     assert jump < 0.05 and jump_half < 0.05, (jump, jump_half)
     assert spread <= 0.05, spread
     assert abs(spread - spread_half) <= 0.1 * spread_half, (spread, spread_half)
+
+
+# -- 1-DOF drops against closed forms ------------------------------------------
+def _drop(S, duration, dt, x0=None):
+    """A 33.3-kg body on one vertical leg (axial element ``S``), gravity off, its foot on
+    the ground at t = 0 and 2 m/s down: states (columns are steps) and the scene."""
+    data = read_toml(STUDIES / "tutorial" / "leg_design.toml")
+    data = {k: data[k] for k in ("scene", "body", "leg", "obstacle")}
+    data["scene"].update(hysteresis="memory", duration=duration, dt=dt)
+    data["leg"][0]["S"] = S
+    scene = scene_from_dict(data)
+    model = build_model(scene)
+    start = initial_state(scene) if x0 is None else x0
+    X, _ = model.rollout(scene.steps)(start, model.default_p, dt)
+    return np.asarray(X), scene
+
+
+MASS, SPEED = 33.3, 2.0
+
+
+def test_a_mass_on_a_viscous_damper_stops_as_the_exponential_says():
+    """x(t) = v₀ m/c (1 − e^(−ct/m)): the stroke to 0.1 %, at second order."""
+    c, errors = 500.0, []
+    for dt in (1e-3, 5e-4):
+        X, scene = _drop({"type": "linear", "stiffness": 0.0, "damping": c}, 0.2, dt)
+        t = dt * np.arange(1, X.shape[1] + 1)
+        z = state_layout(1).get(X, "position")[2]
+        exact = scene.body.position[2] - SPEED * MASS / c * (1 - np.exp(-c * t / MASS))
+        errors.append(np.max(np.abs(z - exact)) / (SPEED * MASS / c))
+    assert errors[0] < 1e-3, errors
+    assert errors[0] / errors[1] > 3.5, errors          # second order
+
+
+def test_an_orifice_damper_stops_as_the_logarithm_says():
+    """m ẍ = −c₂ ẋ|ẋ|: x(t) = (m/c₂) ln(1 + c₂ v₀ t/m), to 0.1 % of the stroke at
+    Δt = 0.1 ms. It converges at first order (0.9 % at 1 ms): the damper's force jumps
+    to c₂v₀² at touchdown, and the step's first kick starts from the free foot's zero
+    (docs/absorbers.md, "Open")."""
+    c2, errors = 400.0, []
+    for dt in (2e-4, 1e-4):
+        X, scene = _drop({"type": "linear", "stiffness": 0.0, "orifice": c2}, 0.2, dt)
+        t = dt * np.arange(1, X.shape[1] + 1)
+        z = state_layout(1).get(X, "position")[2]
+        stroke = MASS / c2 * np.log1p(c2 * SPEED * t / MASS)
+        errors.append(np.max(np.abs(scene.body.position[2] - z - stroke)) / stroke[-1])
+    assert errors[1] < 1e-3, errors
+    assert 1.8 < errors[0] / errors[1] < 2.2, errors    # first order, as documented
+
+
+def test_a_honeycomb_dropped_twice_crushes_twice_and_rebounds_from_its_elastic_line():
+    """Each drop crushes p = (½mv² − F_c²/2k)/F_c and rebounds at F_c/√(km); the second
+    starts from the first's set, so the sets add (to 0.1 % at Δt = 0.25 ms)."""
+    k, F_c, dt = 1e6, 1500.0, 2.5e-4
+    honeycomb = {"type": "crushable", "stiffness": k, "crush_force": F_c, "plateau_slope": 0.0}
+    crush = (0.5 * MASS * SPEED ** 2 - F_c ** 2 / (2 * k)) / F_c
+    rebound = F_c / np.sqrt(k * MASS)
+    xl = state_layout(1)
+    X, scene = _drop(honeycomb, 0.15, dt)
+    first = xl.get(X, "stroke_set", 0)[-1]
+    assert abs(first + crush) < 1e-3 * crush
+    assert abs(xl.get(X, "velocity")[2, -1] - rebound) < 1e-3 * rebound
+    # again at 2 m/s, the retracted foot on the ground
+    x1 = X[:, -1].copy()
+    foot = x1[xl.slice("foot", 0)] - x1[xl.slice("position")]
+    x1[xl.slice("position")] = [0.0, 0.0, -foot[2]]
+    x1[xl.slice("foot", 0)] = 0.0
+    x1[xl.slice("velocity")] = [0.0, 0.0, -SPEED]
+    X2, _ = _drop(honeycomb, 0.15, dt, x0=x1)
+    assert abs(xl.get(X2, "stroke_set", 0)[-1] + 2 * crush) < 1e-3 * 2 * crush
+    assert abs(xl.get(X2, "velocity")[2, -1] - rebound) < 1e-3 * rebound
+
+
+def test_gradients_through_crushing_and_unloading_equal_central_differences():
+    """d(final state)/d(touchdown speed, crush force) by AD through a drop that loads
+    elastically, crushes, unloads and rebounds, against central differences."""
+    data = read_toml(STUDIES / "tutorial" / "leg_design.toml")
+    data = {k: data[k] for k in ("scene", "body", "leg", "obstacle")}
+    data["scene"].update(hysteresis="memory", duration=0.08, dt=1e-3)
+    data["leg"][0]["S"] = {"type": "crushable", "stiffness": 1e6, "crush_force": 1500.0,
+                           "plateau_slope": 2e3, "damping": 300.0, "tunable": True}
+    scene = scene_from_dict(data)
+    model = build_model(scene)
+    x0, p0 = initial_state(scene), model.default_p
+    xl = state_layout(1)
+    speed = xl.slice("velocity").start + 2
+    crush = model.param_names.index("leg0.S.crush_force")
+    X0, P = ca.MX.sym("x0", model.nx), ca.MX.sym("p", model.np)
+    final = model.rollout(scene.steps)(X0, P, scene.dt)[0][:, -1]
+    jac = ca.Function("drop_sensitivity", [X0, P], [ca.jacobian(final, X0)[:, speed],
+                                       ca.jacobian(final, P)[:, crush]])
+    ad_speed, ad_crush = (np.asarray(j).ravel() for j in jac(x0, p0))
+    run = ca.Function("run", [X0, P], [final])
+
+    def central(vector, index, step):
+        plus, minus = vector.copy(), vector.copy()
+        plus[index] += step
+        minus[index] -= step
+        return plus, minus
+
+    hi, lo = central(x0, speed, 1e-6)
+    fd_speed = (np.asarray(run(hi, p0)) - np.asarray(run(lo, p0))).ravel() / 2e-6
+    hi, lo = central(p0, crush, 1e-3)
+    fd_crush = (np.asarray(run(x0, hi)) - np.asarray(run(x0, lo))).ravel() / 2e-3
+    # the run crushed, unloaded and left the ground
+    assert xl.get(np.asarray(run(x0, p0)).ravel(), "stroke_set", 0) < -0.01
+    for ad, fd in ((ad_speed, fd_speed), (ad_crush, fd_crush)):
+        scale = np.max(np.abs(fd))
+        assert scale > 0
+        np.testing.assert_allclose(ad, fd, rtol=0, atol=1e-6 * scale)
