@@ -55,8 +55,8 @@ import casadi as ca
 
 from .characteristics import Curve
 
-__all__ = ["elastic_stiffness", "band", "memory_force", "next_set", "free_deflection",
-           "set_on_loading", "damper_force", "end_rate", "relaxed_deflection",
+__all__ = ["elastic_stiffness", "band", "memory_force", "band_force", "next_set",
+           "free_deflection", "set_on_loading", "damper_force", "end_rate", "relaxed_deflection",
            "RELAX_NEWTON_STEPS"]
 
 #: Newton steps of a free damped element's relaxation over a step (A4). Its
@@ -85,13 +85,18 @@ def band(curve: Curve, x, theta=None):
 
 
 def memory_force(curve: Curve, x, s, theta=None, x_regime=None):
-    """f(x, s) of (A1), N or N·m.
+    """f(x, s) of (A1) and the element's end stop in parallel, N or N·m.
 
     ``x_regime`` (default ``x``): the deflection whose place in the band picks
     the regime (on the lower bound, elastic, on the upper bound); the force is
     then that regime's expression at ``x``, so that its derivative in ``x`` is
     the tangent stiffness of the regime the step is heading for.
     """
+    return band_force(curve, x, s, theta, x_regime) + curve.end_stop(x, theta)
+
+
+def band_force(curve: Curve, x, s, theta=None, x_regime=None):
+    """f(x, s) of (A1) alone (see :func:`memory_force`)."""
     k_e = elastic_stiffness(curve, theta)
     lo, hi = band(curve, x, theta)
     trial = k_e * (x - s)                                            # (A1)
@@ -108,7 +113,7 @@ def memory_force(curve: Curve, x, s, theta=None, x_regime=None):
 
 def next_set(curve: Curve, x, s, theta=None):
     """s⁺ of (A2): the set after the element reached ``x`` from set ``s``."""
-    return x - memory_force(curve, x, s, theta) / elastic_stiffness(curve, theta)   # (A2)
+    return x - band_force(curve, x, s, theta) / elastic_stiffness(curve, theta)     # (A2)
 
 
 def free_deflection(curve: Curve, s, theta=None):
@@ -145,7 +150,8 @@ def relaxed_deflection(curve: Curve, x0, s, mean_rate0, dt, theta=None):
         return free_deflection(curve, s, theta)
     x = ca.SX.sym("x")
     th_load, _ = curve._split(theta)
-    elastic = memory_force(curve, x, s, theta) if curve.has_memory else curve._loading(x, th_load)
+    elastic = (memory_force(curve, x, s, theta) if curve.has_memory
+               else curve._loading(x, th_load) + curve.end_stop(x, theta))
     residual = elastic + damper_force(
         curve, end_rate(x, x0, mean_rate0, dt))                        # (A4)
     slope = ca.jacobian(residual, x)

@@ -38,6 +38,8 @@ __all__ = [
     "KINK_WIDTH",
     "RATE_WIDTH",
     "ZERO_DEFLECTION",
+    "STOP_STIFFNESS_RATIO",
+    "GasSpring",
 ]
 
 #: Default smoothing width of a knot, in units of the deflection (m or rad).
@@ -61,6 +63,13 @@ RATE_WIDTH = 1e-6
 #: fraction of the step (a first-order error of the whole run). 1e-12 is far
 #: above round-off and far below any deflection a curve resolves.
 ZERO_DEFLECTION = 1e-12
+
+#: Default stiffness of an end stop relative to the loading curve's slope at
+#: zero: 100 times stiffer bottoms an element within 1 % of its stroke limit
+#: under the force that took it to its limit, and stays 10 times softer than
+#: the rigid rod's axial ratio (``symcushion.strut.RIGID_AXIAL_RATIO``), so the
+#: stable step it asks for is a tenth of the rod's.
+STOP_STIFFNESS_RATIO = 1e2
 
 
 def _is_symbolic(*values) -> bool:
@@ -136,12 +145,20 @@ class Curve:
     orifice : float
         c₂ of an orifice damper in parallel, force c₂·ẋ|ẋ| (N·s²/m²), ≥ 0;
         memory law only.
+    stroke_limit : float, optional
+        The compression at which the element bottoms (m or rad, > 0): an end
+        stop k_stop·min(x + limit, 0) acts in parallel beyond it, and a run
+        that reaches it says so (``symcushion.monitor``).
+    stop_stiffness : float, optional
+        k_stop of the end stop (N/m or N·m/rad, > 0); default
+        :data:`STOP_STIFFNESS_RATIO` times the loading curve's slope at zero.
     """
 
     def __init__(self, *, unloading: "Curve | None" = None, smooth: bool = False,
                  kink_width: float = KINK_WIDTH, rate_width: float = RATE_WIDTH,
                  tunable: bool = False, elastic_stiffness: "float | None" = None,
-                 damping: float = 0.0, orifice: float = 0.0):
+                 damping: float = 0.0, orifice: float = 0.0,
+                 stroke_limit: "float | None" = None, stop_stiffness: "float | None" = None):
         if unloading is not None and not isinstance(unloading, Curve):
             raise TypeError(
                 f"`unloading` must be a Curve (e.g. Linear(1e4)), got {unloading!r}.")
@@ -163,6 +180,13 @@ class Curve:
                                               positive=True))
         self.damping = _check_real("damping", damping, nonnegative=True)
         self.orifice = _check_real("orifice", orifice, nonnegative=True)
+        self.stroke_limit = (None if stroke_limit is None else
+                             _check_real("stroke_limit", stroke_limit, positive=True))
+        if stop_stiffness is not None and stroke_limit is None:
+            raise ValueError("`stop_stiffness` acts at the end stop; give `stroke_limit` too, "
+                             "or remove `stop_stiffness`.")
+        self.stop_stiffness = (None if stop_stiffness is None else
+                               _check_real("stop_stiffness", stop_stiffness, positive=True))
 
     @property
     def has_damper(self) -> bool:
@@ -275,7 +299,21 @@ class Curve:
         if self.unloading is not None:
             weight = self._weight(x if branch_x is None else branch_x, rate)
             value = weight * value + (1 - weight) * self.unloading._loading(x, th_unload)
+        if self.stroke_limit is not None:
+            value = value + self.end_stop(x, theta)
         return _numeric_out(value, symbolic)
+
+    def end_stop(self, x, theta=None):
+        """The end stop's force k_stop·min(x + limit, 0) (0 without a ``stroke_limit``)."""
+        if self.stroke_limit is None:
+            return 0 * x
+        return self._stop_stiffness(theta) * ca.fmin(x + self.stroke_limit, 0)
+
+    def _stop_stiffness(self, theta):
+        if self.stop_stiffness is not None:
+            return self.stop_stiffness
+        th_load, _ = self._split(theta)
+        return STOP_STIFFNESS_RATIO * self._loading_slope(0.0, th_load)
 
     def slope(self, x, rate=0.0, theta=None):
         """Derivative df/dx of the active branch (N/m or N·m/rad), written by hand."""
@@ -287,6 +325,8 @@ class Curve:
         if self.unloading is not None:
             weight = self._weight(x, rate)
             value = weight * value + (1 - weight) * self.unloading._loading_slope(x, th_unload)
+        if self.stroke_limit is not None:
+            value = value + ca.if_else(x < -self.stroke_limit, self._stop_stiffness(theta), 0.0)
         return _numeric_out(value, symbolic)
 
     __call__ = force
@@ -495,3 +535,65 @@ class Crushable(Curve):
 
     def _loading_zero(self, theta):
         return 0 * theta[0]                     # k x: zero at zero deflection
+
+
+
+class GasSpring(Curve):
+    """The gas spring of an oleo-pneumatic strut: a polytropic gas column.
+
+    A piston of area A compresses a gas of volume V₀ at pressure p₀ (full
+    extension, x = 0); at stroke x (< 0 in compression) the force is
+
+        f(x) = −p₀ A (V₀ / (V₀ + A x))ⁿ
+
+    n = 1 isothermal, 1.4 adiabatic for air or nitrogen, about 1.1–1.3 for a
+    strut in service. At x = 0 the strut pushes out with its preload p₀A. The
+    volume left is held above :data:`MIN_GAS_FRACTION` of V₀ (the gas column
+    cannot close); give the element a ``stroke_limit`` below V₀/A for the
+    strut's real bottoming.
+
+    Parameters
+    ----------
+    pressure : float
+        p₀, Pa, > 0.
+    area : float
+        A, m², > 0.
+    volume : float
+        V₀, m³, > 0.
+    exponent : float
+        n, ≥ 1.
+    """
+
+    def __init__(self, pressure, area, volume, exponent=1.3, **options):
+        super().__init__(**options)
+        pressure = _check_real("pressure", pressure, positive=True)
+        area = _check_real("area", area, positive=True)
+        volume = _check_real("volume", volume, positive=True)
+        exponent = _check_real("exponent", exponent, positive=True)
+        if not isinstance(exponent, (ca.SX, ca.MX)) and exponent < 1:
+            raise ValueError(f"`exponent` must be at least 1 (isothermal), got {exponent}; "
+                             "use 1.0–1.4.")
+        self._branch = _Branch(("pressure", "area", "volume", "exponent"),
+                               (pressure, area, volume, exponent))
+
+    def _ratio(self, x, theta):
+        p0, area, volume, n = theta[0], theta[1], theta[2], theta[3]
+        left = ca.fmax(volume + area * x, MIN_GAS_FRACTION * volume)
+        return p0, area, volume, n, left
+
+    def _loading(self, x, theta):
+        p0, area, volume, n, left = self._ratio(x, theta)
+        return -p0 * area * (volume / left) ** n
+
+    def _loading_slope(self, x, theta):
+        p0, area, volume, n, left = self._ratio(x, theta)
+        return p0 * area * area * n * (volume / left) ** n / left
+
+    def _loading_zero(self, theta):
+        raise ValueError("a gas spring pushes at every stroke: it has no unloaded deflection "
+                         "and keeps no set; it is an elastic element of the memory law.")
+
+
+#: Smallest gas volume a :class:`GasSpring` keeps, as a fraction of V₀: the
+#: force there is 1000ⁿ times the preload, far past any stroke a strut uses.
+MIN_GAS_FRACTION = 1e-3

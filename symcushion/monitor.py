@@ -19,7 +19,7 @@ import numpy as np
 from .checks import BODY_TOLERANCE, Finding, _distances, _rotations, _world_points
 from .obstacles import Terrain
 from .scene import Scene
-from .layout import state_layout
+from .layout import output_layout, state_layout
 from .touchdown import initial_state
 from .validation import did_you_mean
 
@@ -151,6 +151,7 @@ class RunMonitor:
         if t.size == 0:
             return out
         self._check_geometry(out, t, X)
+        self._check_end_stops(out, t, Y)
         gain = self._energy(X) - self._energy0
         if np.max(gain) > self._allowed:
             i = int(np.argmax(gain > self._allowed))
@@ -162,6 +163,22 @@ class RunMonitor:
                       "(command line: --stability; Python: simulate(..., adaptive=True, "
                       "stability=True)).", value=gain[i])
         return out
+
+    def _check_end_stops(self, out, t, Y):
+        """A leg whose axial element went past its ``stroke_limit``: it bottomed."""
+        yl = output_layout(len(self.scene.legs))
+        for j, leg in enumerate(self.scene.legs):
+            limit = next((el.curve.stroke_limit for el in leg.elements if el.name == "S"), None)
+            if limit is None or Y.shape[0] != yl.size:
+                continue
+            stroke = yl.get(Y, "stroke", j)
+            if np.min(stroke) < -limit:
+                i = int(np.argmax(stroke < -limit))
+                self._add(out, "bottomed", "warning", t[i], f"the absorber of leg {j} reached "
+                          f"its end stop at t = {t[i]:.6g} s (stroke {stroke[i]:.4g} m, limit "
+                          f"{-limit:g} m): the loads past it are the stop's, not the "
+                          "absorber's; give it more stroke or a higher force.", leg=j,
+                          value=-stroke[i])
 
     def _check_geometry(self, out, t, X):
         scene, tol = self.scene, self.tolerances["penetration"]

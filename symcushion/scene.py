@@ -17,7 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .characteristics import KINK_WIDTH, RATE_WIDTH, Crushable, Curve, Linear, PiecewiseLinear
+from .characteristics import (KINK_WIDTH, RATE_WIDTH, Crushable, Curve, GasSpring, Linear,
+                              PiecewiseLinear)
 from .contact import METHODS  # re-exported: scenes name their contact step
 from .obstacles import ImplicitSurface, Obstacle, Plane, Sphere, Terrain
 from .strut import HingedStrut
@@ -279,11 +280,12 @@ def symmetric_legs(count: int, radius: float, height: float, length: float, e0_l
 #: ``symcushion.validation``).
 _Table = Table
 
-_CURVES = ("linear", "piecewise", "crushable")
+_CURVES = ("linear", "piecewise", "crushable", "gas")
 #: Every key of an element table, for "did you mean" on a misspelt one.
 _CURVE_KEYS = ("type", "smooth", "tunable", "unloading", "stiffness", "preload", "x", "f",
                "crush_force", "plateau_slope", "kink_width", "rate_width",
-               "elastic_stiffness", "damping", "orifice")
+               "elastic_stiffness", "damping", "orifice", "stroke_limit", "stop_stiffness",
+               "pressure", "area", "volume", "exponent")
 
 
 def _build(t: Table, build, *args, **kwargs):
@@ -318,6 +320,9 @@ def _curve(table, allow_unloading=True) -> Curve:
     for damper in ("damping", "orifice"):
         if table.has(damper):
             options[damper] = table.get(damper, nonnegative=True)
+    for stop in ("stroke_limit", "stop_stiffness"):
+        if table.has(stop):
+            options[stop] = table.get(stop, positive=True)
     if allow_unloading and table.has("unloading"):
         options["unloading"] = _curve(table.get("unloading", kind="table"), allow_unloading=False)
     if kind == "linear":
@@ -329,6 +334,11 @@ def _curve(table, allow_unloading=True) -> Curve:
         build, args = Crushable, (table.get("stiffness", positive=True),
                                   table.get("crush_force", positive=True),
                                   table.get("plateau_slope", 0.0))
+    elif kind == "gas":
+        build, args = GasSpring, (table.get("pressure", positive=True),
+                                  table.get("area", positive=True),
+                                  table.get("volume", positive=True),
+                                  table.get("exponent", 1.3, positive=True))
     else:                       # a bad type, already reported: its fields are not unknown
         build, args = None, ()
         table.used.update(_CURVE_KEYS)

@@ -317,3 +317,49 @@ def test_gradients_through_crushing_and_unloading_equal_central_differences():
         scale = np.max(np.abs(fd))
         assert scale > 0
         np.testing.assert_allclose(ad, fd, rtol=0, atol=1e-6 * scale)
+
+
+def test_a_gas_spring_carries_the_weight_where_its_polytropic_law_says():
+    """m g = p₀A (V₀/(V₀ + A x))ⁿ at rest: x = V₀/A ((p₀A/mg)^(1/n) − 1), to 1e-6 m."""
+    data = read_toml(STUDIES / "tutorial" / "leg_design.toml")
+    data = {k: data[k] for k in ("scene", "body", "leg", "obstacle")}
+    data["scene"].update(hysteresis="memory", duration=3.0, gravity=[0.0, 0.0, -9.81])
+    data["body"]["velocity"] = [0.0, 0.0, 0.0]
+    p0, area, volume, n = 1e5, 2e-3, 1e-3, 1.3
+    data["leg"][0]["S"] = {"type": "gas", "pressure": p0, "area": area, "volume": volume,
+                           "exponent": n, "damping": 300.0}
+    scene = scene_from_dict(data)
+    model = build_model(scene)
+    _, Y = model.rollout(scene.steps)(initial_state(scene), model.default_p, scene.dt)
+    stroke = output_layout(1).get(np.asarray(Y), "stroke", 0)
+    weight = scene.body.mass * 9.81
+    expected = volume / area * ((p0 * area / weight) ** (1 / n) - 1)
+    assert abs(stroke[-1] - expected) < 1e-6, (stroke[-1], expected)
+
+
+def test_an_absorber_that_bottoms_is_reported_and_held_by_its_stop():
+    from symcushion.driver import RunWarning, simulate
+    data = read_toml(STUDIES / "tutorial" / "leg_design.toml")
+    data = {k: data[k] for k in ("scene", "body", "leg", "obstacle")}
+    data["scene"].update(hysteresis="memory", duration=0.1)
+    data["leg"][0]["S"] = {"type": "crushable", "stiffness": 1e6, "crush_force": 1500.0,
+                           "stroke_limit": 0.02, "stop_stiffness": 1e7}
+    with pytest.warns(RunWarning, match="leg 0 reached its end stop"):
+        traj = simulate(scene_from_dict(data))
+    # ½mv² = 66.6 J against 1.5 kN crushes 44 mm: the stop holds it near 20 mm
+    assert -0.02 - 0.01 < traj.stroke.min() < -0.02
+
+
+def test_scene_files_take_the_new_element_fields():
+    data = read_toml(STUDIES / "tutorial" / "leg_design.toml")
+    data = {k: data[k] for k in ("scene", "body", "leg", "obstacle")}
+    data["leg"][0]["S"] = {"type": "gas", "pressure": 1e5, "area": 2e-3, "volume": 1e-3,
+                           "stroke_limit": 0.3, "stop_stiffness": 1e6, "damping": 10.0}
+    with pytest.raises(ValueError, match="hysteresis = 'memory'"):
+        scene_from_dict(data)
+    data["scene"]["hysteresis"] = "memory"
+    S = scene_from_dict(data).legs[0].elements[0].curve
+    assert (S.stroke_limit, S.stop_stiffness, S.damping) == (0.3, 1e6, 10.0)
+    data["leg"][0]["S"]["exponent"] = 0.5
+    with pytest.raises(ValueError, match="exponent"):
+        scene_from_dict(data)
