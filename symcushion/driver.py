@@ -44,6 +44,9 @@ KEEP_ROWS = 20_000
 #: chattering run beyond this counts the rest in ``info['events_dropped']``.
 MAX_EVENTS = 10_000
 
+#: The per-step work outputs summed into run.json's ``energy`` totals.
+ENERGY_FIELDS = ("work_axial", "work_bending", "work_friction")
+
 class RunWarning(UserWarning):
     """A finding of a run monitor, raised through :mod:`warnings` by the API."""
 
@@ -55,6 +58,7 @@ class _Recorder:
         self.model, self.sink, self.monitor = model, sink, monitor
         self.keep_rows = keep_rows
         self.events, self.warnings, self.dropped = [], [], 0
+        self.energy = None
         self.kept, self.kept_idx, self.stride, self.count = [], [], 1, 0
         self.last_row = None
         from tqdm.auto import tqdm
@@ -106,8 +110,24 @@ class _Recorder:
             else:
                 warnings.warn(text, RunWarning, stacklevel=4)
 
+    def _energy(self, Y):
+        """Add the block's per-leg work (axial, bending, friction; J) to the run's totals."""
+        yl = output_layout(self.model.n_legs)
+        block = np.array([yl.legs(Y, f).sum(axis=-1) for f in ENERGY_FIELDS])
+        self.energy = block if self.energy is None else self.energy + block
+
+    def energy_totals(self) -> dict:
+        """The run's energy per leg (J): on its axial element, on its hinge springs,
+        dissipated by friction (``layout.LEG_OUT_FIELDS``); sums of the steps' work."""
+        totals = np.zeros((len(ENERGY_FIELDS), self.model.n_legs)) if self.energy is None \
+            else self.energy
+        return {f"leg{j}": {f.replace("work_", "") + "_J": float(totals[i, j])
+                            for i, f in enumerate(ENERGY_FIELDS)}
+                for j in range(self.model.n_legs)}
+
     def _rows(self, t, X, Y):
         rows = np.column_stack([t, X.T, Y.T])
+        self._energy(Y)
         if not np.all(np.isfinite(state_layout(self.model.n_legs).get(X, "position"))):
             raise FloatingPointError(
                 f"the simulation produced non-finite body positions near t = {t[0]:.4g} s; "
@@ -146,7 +166,8 @@ class _Recorder:
             rows = np.vstack([rows, self.last_row])
         traj = _assemble(rows, self.model.n_legs, gravity)
         traj.info = {"events": self.events, "warnings": self.warnings,
-                     "events_dropped": self.dropped, "rows": self.count}
+                     "events_dropped": self.dropped, "rows": self.count,
+                     "energy": self.energy_totals()}
         if self.keep_rows is not None:
             traj.info["stride"] = self.stride
         return traj

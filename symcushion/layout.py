@@ -43,7 +43,7 @@ __all__ = ["Field", "VectorLayout", "BODY_STATE_FIELDS", "LEG_STATE_FIELDS", "BO
 
 #: Unit tokens of CSV column names and what each stands for.
 UNITS = {"m": "m", "m_s": "m/s", "m_s2": "m/s²", "rad": "rad", "rad_s": "rad/s", "N": "N",
-         "1": "dimensionless", "kg": "kg", "kg_m2": "kg·m²"}
+         "1": "dimensionless", "kg": "kg", "kg_m2": "kg·m²", "J": "J"}
 
 _XYZ = ("x", "y", "z")
 _WXYZ = ("w", "x", "y", "z")
@@ -117,7 +117,7 @@ BODY_OUT_FIELDS = (
     Field("acceleration", "m_s2", "acceleration of the centre of mass at the end of "
           "the step, world frame (gravity included)", _XYZ),
 )
-#: Leg block of the per-step output: 14 entries per leg.
+#: Leg block of the per-step output: 17 entries per leg.
 LEG_OUT_FIELDS = (
     Field("in_contact", "1", "1 if the foot is in contact at the end of the step"),
     Field("mode", "1", "contact mode code, see MODES"),
@@ -127,6 +127,15 @@ LEG_OUT_FIELDS = (
     Field("stroke", "m", "axial stroke δ_S = L − L₀"),
     Field("beta", "rad", "hinge azimuth β"),
     Field("gamma_deflection", "rad", "polar deflection γ − γ₀"),
+    Field("work_axial", "J", "work done on the axial element over the step, "
+          "½(S₀ + S₁)(δ_S1 − δ_S0), S = P·e_S (its dampers included): what it absorbs and "
+          "stores", default=0.0),
+    Field("work_bending", "J", "work done on the hinge springs over the step: the work of "
+          "the foot force on the foot's motion relative to the body, ½(P₀ + P₁)·(ρ₁ − ρ₀), "
+          "less work_axial", default=0.0),
+    Field("work_friction", "J", "energy dissipated by friction at the foot over the step, "
+          "−½(P₀ + P₁)·(r₁ − r₀) in the world frame for a foot on the obstacle at the end",
+          default=0.0),
 )
 
 #: Codes of the leg output ``mode``.

@@ -51,7 +51,7 @@ RUN_FILES = (CSV_NAME, NPZ_NAME, JSON_NAME, MAT_NAME, "summary.png", "animation.
 
 #: Unit suffixes of the column names, longest first so that ``_m_s2`` is not
 #: read as ``_s2``; ``1`` marks a dimensionless column.
-UNITS = ("m_s2", "rad_s", "m_s", "rad", "m", "N", "s", "1")
+UNITS = ("m_s2", "rad_s", "m_s", "rad", "m", "N", "J", "s", "1")
 
 #: Word of each mode code and back (the CSV writes words, the NPZ codes).
 MODE_CODES = {word: code for code, word in MODES.items()}

@@ -193,6 +193,24 @@ def _leg_params(scene: Scene):
     return lay.names, [(sl.start, sl.stop) for sl in lay._legs]
 
 
+def leg_work(fns, start: dict, end: dict, stays) -> dict:
+    """The energy one leg takes over a step (trapezoid rule; J): on its axial element,
+    on its hinge springs, and dissipated by friction at its foot.
+
+    ``start`` and ``end`` hold the foot in body axes ``rho``, its force ``P`` (body
+    axes), the body's rotation ``R`` and the foot's world point ``foot``; ``stays``:
+    the foot is on the obstacle at the end (only then did it move along it).
+    """
+    geo0 = fns["strut_geometry"].call(dict(r=start["rho"]))
+    geo1 = fns["strut_geometry"].call(dict(r=end["rho"]))
+    axial = 0.5 * (ca.dot(start["P"], geo0["e_S"]) + ca.dot(end["P"], geo1["e_S"])) * (
+        geo1["delta_S"] - geo0["delta_S"])
+    leg = 0.5 * ca.dot(start["P"] + end["P"], end["rho"] - start["rho"])
+    slid = ca.if_else(stays, end["foot"] - start["foot"], ca.DM.zeros(3))
+    friction = -0.5 * ca.dot(start["R"] @ start["P"] + end["R"] @ end["P"], slid)
+    return dict(work_axial=axial, work_bending=leg - axial, work_friction=friction)
+
+
 def _memory_leg_input(leg, fns, p_leg, foot, rho0, h) -> LegInput:
     """A leg on the memory law in the step: its free foot at the start is where it
     relaxed to, at the end where it relaxes to over the step (symcushion.absorber)."""
@@ -526,7 +544,11 @@ def build_model(scene: Scene) -> StepModel:
         outputs.append(dict(in_contact=ca.if_else(stays, 1.0, 0.0), mode=mode, force=R1 @ P1,
                             normal=ca.if_else(stays, r["normal_w"], ca.DM.zeros(3)),
                             axis=R1 @ geo["e_S"], stroke=geo["delta_S"], beta=geo["beta"],
-                            gamma_deflection=geo["gamma"] - leg.gamma0))
+                            gamma_deflection=geo["gamma"] - leg.gamma0,
+                            **leg_work(fns, dict(rho=rho0[j], P=feet[j]["force_body"], R=R,
+                                                 foot=ca.if_else(r["in_contact"],
+                                                                 feet[j]["foot"], r["r_s"])),
+                                       dict(rho=rho1, P=P1, R=R1, foot=foot_w), stays)))
 
     # 4. second half kick: the located switches' correction (B1)
     vel1 = vel1 + h * switch_force / m

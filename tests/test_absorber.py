@@ -363,3 +363,30 @@ def test_scene_files_take_the_new_element_fields():
     data["leg"][0]["S"]["exponent"] = 0.5
     with pytest.raises(ValueError, match="exponent"):
         scene_from_dict(data)
+
+
+def test_the_bodys_energy_loss_is_what_the_legs_took_at_second_order():
+    """E(t) − E(0) + Σ (work on the elements + friction) = 0 to O(Δt²) on the lunar lander;
+    the run's totals (run.json's ``energy``) are the sums of the per-step outputs."""
+    from symcushion.driver import simulate
+    residuals = []
+    for dt in (1e-3, 5e-4, 2.5e-4):
+        scene, X, Y = _lunar("memory", dt=dt, duration=1.0)
+        x0 = initial_state(scene)
+        X = np.c_[x0, X]
+        xl, yl = state_layout(3), output_layout(3)
+        body = scene.body
+        v, w = xl.get(X, "velocity"), xl.get(X, "angular_velocity")
+        energy = (0.5 * body.mass * np.sum(v * v, axis=0)
+                  + 0.5 * np.einsum("in,ij,jn->n", w, body.inertia, w)
+                  - body.mass * (scene.gravity @ xl.get(X, "position")))
+        taken = sum(yl.legs(Y, f).sum(axis=0) for f in
+                    ("work_axial", "work_bending", "work_friction"))
+        residuals.append(np.max(np.abs(energy[1:] - energy[0] + np.cumsum(taken)))
+                         / (energy[0] - energy.min()))
+    assert residuals[0] < 1e-3, residuals
+    assert np.log2(residuals[0] / residuals[2]) / 2 > 1.8, residuals
+    traj = simulate(scene.with_(dt=1e-3, duration=0.2))
+    totals = traj.info["energy"]
+    assert set(totals) == {"leg0", "leg1", "leg2"}
+    assert totals["leg1"]["axial_J"] > 0 and totals["leg1"]["friction_J"] >= 0
