@@ -377,12 +377,13 @@ def fmi_headers() -> Path:
     """The folder of the FMI 2.0 headers shipped by the installed FMPy package."""
     spec = importlib.util.find_spec("fmpy")
     if spec is None or spec.origin is None:
-        raise ImportError("building an FMU needs the FMI 2.0 headers of FMPy: install the "
-                          "extra, pip install 'symcushion[fmu]' (or pip install fmpy).")
+        raise FileNotFoundError("building an FMU needs the FMI 2.0 headers of FMPy: install "
+                                "the extra, pip install 'symcushion[fmu]' (or pip install "
+                                "fmpy).")
     folder = Path(spec.origin).parent / "c-code"
     if not (folder / "fmi2Functions.h").is_file():
-        raise ImportError(f"the installed FMPy has no fmi2Functions.h in {folder}; install "
-                          "FMPy >= 0.3 (pip install -U fmpy).")
+        raise FileNotFoundError(f"the installed FMPy has no fmi2Functions.h in {folder}; "
+                                "install FMPy >= 0.3 (pip install -U fmpy).")
     return folder
 
 
