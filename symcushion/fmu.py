@@ -40,8 +40,8 @@ import numpy as np
 
 from . import __version__
 from .cbuild import CFLAGS, CODEGEN_OPTIONS, WARNINGS, _run_parallel, find_compiler
-from .layout import (BODY_OUT_FIELDS, BODY_STATE_FIELDS, LEG_OUT_FIELDS, SCENE_PARAM_FIELDS,
-                     output_layout, quat_to_rot_np, state_layout)
+from .layout import (BODY_OUT_FIELDS, BODY_STATE_FIELDS, LEG_OUT_FIELDS, MODES,
+                     SCENE_PARAM_FIELDS, output_layout, quat_to_rot_np, state_layout)
 from .results import check_output_file, replacing
 from .scene import Scene, load_scene
 from .touchdown import StepModel, build_model, initial_state
@@ -102,6 +102,11 @@ _BODY_Y_OUT = tuple(f.name for f in BODY_OUT_FIELDS)
 _LEG_Y_OUT = ("stroke", "force", "mode")
 #: Leg outputs of integer type (codes of symcushion.layout.MODES).
 _INTEGER_OUT = ("mode",)
+#: Meanings that say more in an FMU than the layout's: the mode's codes, and the
+#: acceleration's share of the external force.
+_MEANINGS = {"mode": "contact mode: " + ", ".join(f"{k} {v}" for k, v in MODES.items()),
+             "acceleration": "acceleration of the centre of mass at the end of the step, world "
+                             "frame (gravity and the external force included)"}
 
 
 @dataclass(frozen=True)
@@ -208,8 +213,9 @@ def fmu_variables(model: StepModel) -> list:
         fields = layout.body_fields if leg is None else layout.leg_fields
         f = next(f for f in fields if f.name == name)
         type_ = "Integer" if name in _INTEGER_OUT else "Real"
+        meaning = _MEANINGS.get(name, f.meaning)
         for column, index in zip(f.columns(owner), range(at.start, at.stop)):
-            add(column, type_, "output", kind, index, f.unit, f.meaning)
+            add(column, type_, "output", kind, index, f.unit, meaning)
 
     for name in _BODY_STATE_OUT:
         add_field(xl, "state", name)
@@ -221,17 +227,36 @@ def fmu_variables(model: StepModel) -> list:
     return out
 
 
+def _grouped(variables):
+    """Runs of variables that differ only in an axis (``gravity.x``, ``.y``, ``.z``)."""
+    groups = []
+    for v in variables:
+        last = groups[-1][-1] if groups else None
+        if last is not None and (last.causality, last.type, last.unit, last.description) == \
+                (v.causality, v.type, v.unit, v.description):
+            groups[-1].append(v)
+        else:
+            groups.append([v])
+    return groups
+
+
 def variables_markdown(model: StepModel) -> str:
-    """The FMU's variables as a Markdown table (name, causality, type, unit, start,
-    meaning), as docs/toolchain.md shows them; legs after the first are
-    summarised."""
+    """The FMU's variables as a Markdown table, as docs/toolchain.md shows them.
+
+    One row per field (``body_position_{x,y,z}_m``; start values in order);
+    the legs after the first are summarised in one row.
+    """
     rows = ["| variable | causality | type | unit | start | meaning |",
-            "|---|---|---|---|---:|---|"]
-    for v in fmu_variables(model):
-        if re.match(r"leg[1-9]", v.name):
-            continue
-        start = "" if v.start is None else f"{v.start:g}"
-        rows.append(f"| `{v.name}` | {v.causality} | {v.type} | {v.fmi_unit or ''} | {start} "
+            "|---|---|---|---|---|---|"]
+    for group in _grouped(v for v in fmu_variables(model) if not re.match(r"leg[1-9]", v.name)):
+        names = [v.name for v in group]
+        prefix = os.path.commonprefix(names)
+        suffix = os.path.commonprefix([n[len(prefix):][::-1] for n in names])[::-1]
+        middles = [n[len(prefix):len(n) - len(suffix)] for n in names]
+        name = names[0] if len(group) == 1 else f"{prefix}{{{','.join(middles)}}}{suffix}"
+        v = group[0]
+        start = ", ".join(f"{u.start:g}" for u in group) if v.start is not None else ""
+        rows.append(f"| `{name}` | {v.causality} | {v.type} | {v.fmi_unit or ''} | {start} "
                     f"| {v.description} |")
     if model.n_legs > 1:
         rows.append(f"| `leg1_…` to `leg{model.n_legs - 1}_…` | output | | | | as leg 0 |")
