@@ -40,6 +40,7 @@ import numpy as np
 
 from . import __version__
 from .cbuild import CFLAGS, CODEGEN_OPTIONS, WARNINGS, _run_parallel, find_compiler
+from .codegen import _c_string
 from .layout import (BODY_OUT_FIELDS, BODY_STATE_FIELDS, LEG_OUT_FIELDS, MODES,
                      SCENE_PARAM_FIELDS, output_layout, quat_to_rot_np, state_layout)
 from .results import check_output_file, replacing
@@ -344,10 +345,6 @@ def _c_array(ctype: str, name: str, values, fmt=repr) -> str:
     vals = [fmt(v) for v in values] or ["0"]
     rows = [", ".join(vals[i:i + 4]) for i in range(0, len(vals), 4)]
     return f"static const {ctype} {name}[{len(vals)}] = {{\n    " + ",\n    ".join(rows) + "\n};\n"
-
-
-def _c_string(text: str) -> str:
-    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
 
 
 def _model_header(model: StepModel, model_identifier: str, guid: str) -> str:

@@ -416,41 +416,20 @@ fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t
                 "outputs and cannot be set");
 }
 
-fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                          fmi2Boolean value[])
-{
-    (void)vr;
-    (void)value;
-    if (nvr == 0) return fmi2OK;
-    return fail((Instance *)c, "fmi2GetBoolean", "this FMU has no Boolean variables");
-}
-
-fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                          const fmi2Boolean value[])
-{
-    (void)vr;
-    (void)value;
-    if (nvr == 0) return fmi2OK;
-    return fail((Instance *)c, "fmi2SetBoolean", "this FMU has no Boolean variables");
-}
-
-fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                         fmi2String value[])
-{
-    (void)vr;
-    (void)value;
-    if (nvr == 0) return fmi2OK;
-    return fail((Instance *)c, "fmi2GetString", "this FMU has no String variables");
-}
-
-fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                         const fmi2String value[])
-{
-    (void)vr;
-    (void)value;
-    if (nvr == 0) return fmi2OK;
-    return fail((Instance *)c, "fmi2SetString", "this FMU has no String variables");
-}
+/* Boolean and String variables: the FMU has none; an empty call is fine */
+#define NO_VARIABLES(function, value_type, type_name)                                   \
+    fmi2Status function(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,     \
+                        value_type value[])                                             \
+    {                                                                                   \
+        (void)vr;                                                                       \
+        (void)value;                                                                    \
+        if (nvr == 0) return fmi2OK;                                                    \
+        return fail((Instance *)c, #function, "this FMU has no " type_name " variables"); \
+    }
+NO_VARIABLES(fmi2GetBoolean, fmi2Boolean, "Boolean")
+NO_VARIABLES(fmi2SetBoolean, const fmi2Boolean, "Boolean")
+NO_VARIABLES(fmi2GetString, fmi2String, "String")
+NO_VARIABLES(fmi2SetString, const fmi2String, "String")
 
 /* ------------------------------------------------------------------------- */
 /* FMU state                                                                 */
@@ -609,14 +588,6 @@ fmi2Status fmi2CancelStep(fmi2Component c)
     return fail((Instance *)c, "fmi2CancelStep", "fmi2DoStep never runs asynchronously");
 }
 
-fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *value)
-{
-    (void)c;
-    (void)s;
-    (void)value;
-    return fmi2Discard;
-}
-
 fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value)
 {
     Instance *m = (Instance *)c;
@@ -625,26 +596,16 @@ fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *
     return fmi2OK;
 }
 
-fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Integer *value)
-{
-    (void)c;
-    (void)s;
-    (void)value;
-    return fmi2Discard;
-}
-
-fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value)
-{
-    (void)c;
-    (void)s;
-    (void)value;
-    return fmi2Discard;
-}
-
-fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2String *value)
-{
-    (void)c;
-    (void)s;
-    (void)value;
-    return fmi2Discard;
-}
+/* fmi2DoStep never returns fmi2Pending: no asynchronous status to ask for */
+#define NO_STATUS(function, value_type)                                                 \
+    fmi2Status function(fmi2Component c, const fmi2StatusKind s, value_type *value)    \
+    {                                                                                   \
+        (void)c;                                                                        \
+        (void)s;                                                                        \
+        (void)value;                                                                    \
+        return fmi2Discard;                                                             \
+    }
+NO_STATUS(fmi2GetStatus, fmi2Status)
+NO_STATUS(fmi2GetIntegerStatus, fmi2Integer)
+NO_STATUS(fmi2GetBooleanStatus, fmi2Boolean)
+NO_STATUS(fmi2GetStringStatus, fmi2String)
