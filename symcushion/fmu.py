@@ -48,15 +48,16 @@ from .scene import Scene, load_scene
 from .touchdown import StepModel, build_model, initial_state
 from .trajectory import initial_output
 
-__all__ = ["FmuVariable", "STEP_MULTIPLE_RTOL", "build_fmu", "fmu_variables",
+__all__ = ["FmuVariable", "STEP_MULTIPLE_RTOL", "build_fmu", "fmi_headers", "fmu_variables",
            "held_input_step", "model_description", "variables_markdown"]
 
 #: Relative tolerance on a communication step being a whole number of the
 #: scene's steps: |h − n·Δt| ≤ this × h. Importers compute h as a difference of
-#: communication points (FMPy: (k + 1)·H − k·H), which is off by a few ulps of
-#: the time; 1e-9 covers that for 10⁶ steps of 1 µs and still refuses any
-#: interval that is a real fraction of a step off.
-STEP_MULTIPLE_RTOL = 1e-9
+#: communication points (FMPy: (k + 1)·H − k·H), off by a few ulp(t), i.e. by
+#: a few ulp(t)/H relative: 1.1e-10 per ulp at t = 1000 s with H = 1 ms. 1e-8
+#: leaves a margin for long runs and still refuses any h that is off by a real
+#: fraction of a step (the FMU would silently run another time than asked).
+STEP_MULTIPLE_RTOL = 1e-8
 
 #: The wrapper, written by hand (package data, ``symcushion/c``).
 WRAPPER = "fmu.c"
@@ -260,7 +261,8 @@ def variables_markdown(model: StepModel) -> str:
         rows.append(f"| `{name}` | {v.causality} | {v.type} | {v.fmi_unit or ''} | {start} "
                     f"| {v.description} |")
     if model.n_legs > 1:
-        rows.append(f"| `leg1_…` to `leg{model.n_legs - 1}_…` | output | | | | as leg 0 |")
+        rows.append(f"| `leg1…` to `leg{model.n_legs - 1}…` | as leg 0 | | | | the same for "
+                    "each further leg |")
     return "\n".join(rows) + "\n"
 
 
@@ -283,6 +285,12 @@ def model_description(model: StepModel, model_identifier: str, guid: str,
     guid : str
     source_files : sequence of str
         The C files under ``sources/`` an importer compiles to rebuild it.
+
+    Returns
+    -------
+    str
+        UTF-8 XML; every output is an initial unknown (``initial`` calculated),
+        every parameter tunable.
     """
     scene = model.scene
     root = ET.Element("fmiModelDescription", dict(
@@ -341,7 +349,13 @@ def model_description(model: StepModel, model_identifier: str, guid: str,
 # ---------------------------------------------------------------------------
 # the wrapper's data header
 # ---------------------------------------------------------------------------
-def _c_array(ctype: str, name: str, values, fmt=repr) -> str:
+def _c_double(value) -> str:
+    """A double as C reads it back exactly (repr: the shortest round-trip digits)."""
+    return repr(float(value))
+
+
+def _c_array(ctype: str, name: str, values, fmt=str) -> str:
+    """A static C array; one element of 0 when empty (C has no empty arrays)."""
     vals = [fmt(v) for v in values] or ["0"]
     rows = [", ".join(vals[i:i + 4]) for i in range(0, len(vals), 4)]
     return f"static const {ctype} {name}[{len(vals)}] = {{\n    " + ",\n    ".join(rows) + "\n};\n"
@@ -356,10 +370,9 @@ def _model_header(model: StepModel, model_identifier: str, guid: str) -> str:
     variables = fmu_variables(model)
     real = [v for v in variables if v.type == "Real"]
     integer = [v for v in variables if v.type == "Integer"]
-    floats = lambda values: [repr(float(v)) for v in values]  # noqa: E731
     defines = dict(FMU_MODEL_IDENTIFIER=_c_string(model_identifier), FMU_GUID=_c_string(guid),
                    FMU_SCENE=_c_string(scene.name), FMU_NX=model.nx, FMU_NY=model.ny,
-                   FMU_NP=model.np, FMU_NU=3 * len(INPUTS), FMU_DT=repr(float(scene.dt)),
+                   FMU_NP=model.np, FMU_NU=3 * len(INPUTS), FMU_DT=_c_double(scene.dt),
                    FMU_STEP_RTOL=repr(STEP_MULTIPLE_RTOL), FMU_N_REAL=len(real),
                    FMU_N_INTEGER=len(integer),
                    FMU_X_VELOCITY=xl.slice("velocity").start,
@@ -382,13 +395,13 @@ def _model_header(model: StepModel, model_identifier: str, guid: str) -> str:
 #define FMU_MODEL_H
 
 """ + "\n".join(lines) + "\n\n"
-            + _c_array("double", "fmu_x0", floats(x0), str)
-            + _c_array("double", "fmu_y0", floats(y0), str)
-            + _c_array("double", "fmu_p0", floats(model.default_p), str)
-            + _c_array("unsigned char", "fmu_real_kind", [_KINDS[v.kind] for v in real], str)
-            + _c_array("int", "fmu_real_index", [v.index for v in real], str)
+            + _c_array("double", "fmu_x0", x0, _c_double)
+            + _c_array("double", "fmu_y0", y0, _c_double)
+            + _c_array("double", "fmu_p0", model.default_p, _c_double)
+            + _c_array("unsigned char", "fmu_real_kind", [_KINDS[v.kind] for v in real])
+            + _c_array("int", "fmu_real_index", [v.index for v in real])
             + _c_array("char *const", "fmu_real_name", [v.name for v in real], _c_string)
-            + _c_array("int", "fmu_integer_index", [v.index for v in integer], str)
+            + _c_array("int", "fmu_integer_index", [v.index for v in integer])
             + "\n#endif /* FMU_MODEL_H */\n")
 
 
@@ -503,9 +516,9 @@ def build_fmu(scene, out, *, model: StepModel | None = None, progress: bool = Fa
         scene = load_scene(scene)
     if not isinstance(scene, Scene):
         raise TypeError(f"`scene` must be a Scene or a path to a scene TOML file, got {scene!r}.")
-    out = check_output_file(out, "--out")
+    out = check_output_file(out, "out")
     if out.suffix != ".fmu":
-        raise ValueError(f"`--out` {str(out)!r} must end in .fmu (importers look for it); "
+        raise ValueError(f"`out` {str(out)!r} must end in .fmu (importers look for it); "
                          f"e.g. {out.with_suffix('.fmu')}.")
     plat, suffix = _platform()
     fmi_headers()                       # before the code generation: the extra is missing
