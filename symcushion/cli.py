@@ -1,4 +1,4 @@
-"""Command line: ``symcushion reproduce | simulate | check | plot | view | codegen | optimise | envelope | design``.
+"""Command line: ``symcushion reproduce | simulate | check | plot | view | codegen | fmu | optimise | envelope | design``.
 
 Each sub-command is a thin layer over the public API; it parses arguments,
 reports progress and turns library errors into one-line messages.
@@ -276,6 +276,17 @@ def _cmd_codegen(args):
     return 0
 
 
+def _cmd_fmu(args):
+    from .fmu import build_fmu
+
+    try:
+        build_fmu(args.scene, args.out, progress=True)
+    except RuntimeError as exc:  # a failed gcc command, with its output
+        print(f"symcushion fmu: error: {exc}", file=sys.stderr)
+        return 1
+    return 0
+
+
 def _set_max_iter(ipopt: dict, value):
     """Ipopt's ``max_iter`` from ``--max-iter``, checked (None leaves the study's)."""
     if value is not None:
@@ -533,6 +544,11 @@ def _add_study_commands(sub):
     p.add_argument("--build", action="store_true",
                    help="compile libsymcushion.so (and the program touchdown) with gcc")
     p.set_defaults(func=_cmd_codegen)
+    p = sub.add_parser("fmu", help="an FMI 2.0 Co-Simulation FMU of a scene's touchdown step "
+                       "(docs/toolchain.md)", description="Build an FMU for Simulink/Modelica.")
+    p.add_argument("scene", type=Path, help="scene TOML file")
+    p.add_argument("--out", type=Path, required=True, metavar="FILE.fmu", help="the FMU")
+    p.set_defaults(func=_cmd_fmu)
 
     p = sub.add_parser("optimise", help="optimise leg characteristics of a study file, write "
                                         "the result as JSON",

@@ -16,5 +16,5 @@ def test_ci_runs_the_readme_test_command_with_every_extra_and_chromium():
     pyproject = (ROOT / "pyproject.toml").read_text()
     for extra in extras:
         assert re.search(rf"^{extra} = \[", pyproject, flags=re.M), extra
-    assert {"test", "peers", "dask", "viewer"} <= set(extras)
+    assert {"test", "peers", "dask", "viewer", "fmu"} <= set(extras)
     assert "apt-get install -y -qq chromium" in ci and "command -v chromium" in ci
