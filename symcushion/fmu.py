@@ -84,7 +84,8 @@ _FMI_UNITS = {"m": ("m", dict(m=1)), "m_s": ("m/s", dict(m=1, s=-1)),
               "rad_s": ("rad/s", dict(rad=1, s=-1)), "N": ("N", dict(kg=1, m=1, s=-2)),
               "N_m": ("N.m", dict(kg=1, m=2, s=-2)), "kg": ("kg", dict(kg=1)),
               "kg_m2": ("kg.m2", dict(kg=1, m=2)), "N_per_m": ("N/m", dict(kg=1, s=-2)),
-              "N_m_per_rad": ("N.m/rad", dict(kg=1, m=2, s=-2, rad=-1))}
+              "N_m_per_rad": ("N.m/rad", dict(kg=1, m=2, s=-2, rad=-1)),
+              "J": ("J", dict(kg=1, m=2, s=-2))}
 
 #: Units of the legs' tunable curve parameters (symcushion.characteristics:
 #: Linear k, preload; PiecewiseLinear f0, f1, ...; Crushable k, crush_force,
@@ -96,7 +97,11 @@ _CURVE_UNITS = {"S": {"force": "N", "slope": "N_per_m"},
 _SLOPE_PARAMS = ("k", "plateau_slope")
 
 #: Where a Real variable lives in the wrapper (the C enum of fmu_model.h).
-_KINDS = {"parameter": 0, "input": 1, "state": 2, "output": 3}
+_KINDS = {"parameter": 0, "input": 1, "state": 2, "output": 3, "energy": 4}
+
+#: The per-step work of each leg (symcushion.layout) that the FMU sums over its
+#: run into the outputs ``leg{j}_energy_{axial,bending,friction}_J``.
+ENERGY_FIELDS = ("work_axial", "work_bending", "work_friction")
 
 #: The outputs: body fields of the state x and the output y, per-leg fields of y.
 _BODY_STATE_OUT = tuple(f.name for f in BODY_STATE_FIELDS)
@@ -128,7 +133,8 @@ class FmuVariable:
         Value reference (per type, from 0).
     kind : str
         Where the wrapper keeps it: ``"parameter"`` (p), ``"input"``,
-        ``"state"`` (x) or ``"output"`` (y).
+        ``"state"`` (x), ``"output"`` (y) or ``"energy"`` (the legs' energy
+        totals the wrapper sums).
     index : int
         Its index in that vector.
     unit : str or None
@@ -181,7 +187,8 @@ def fmu_variables(model: StepModel) -> list:
     position, velocity, attitude and angular velocity (state x), its
     acceleration (output y), and per leg the stroke, the force on the foot
     (world) and the contact mode (y), named as the CSV columns of
-    ``symcushion simulate``.
+    ``symcushion simulate``, and the energy the leg took since the start
+    (``leg{j}_energy_{axial,bending,friction}_J``, sums of the steps' work).
 
     Parameters
     ----------
@@ -226,6 +233,13 @@ def fmu_variables(model: StepModel) -> list:
     for j in range(n_legs):
         for name in _LEG_Y_OUT:
             add_field(yl, "output", name, j)
+        for k, field in enumerate(ENERGY_FIELDS):
+            what = field.replace("work_", "")
+            add(f"leg{j}_energy_{what}_J", "Real", "output", "energy",
+                len(ENERGY_FIELDS) * j + k, "J", f"sum since the start of the steps' "
+                f"{field} (symcushion.layout): the energy the leg took "
+                + ("by friction at its foot" if what == "friction" else
+                   f"on its {what} element{'s' if what == 'bending' else ''}"))
     return out
 
 
@@ -374,7 +388,7 @@ def _model_header(model: StepModel, model_identifier: str, guid: str) -> str:
                    FMU_SCENE=_c_string(scene.name), FMU_NX=model.nx, FMU_NY=model.ny,
                    FMU_NP=model.np, FMU_NU=3 * len(INPUTS), FMU_DT=_c_double(scene.dt),
                    FMU_STEP_RTOL=repr(STEP_MULTIPLE_RTOL), FMU_N_REAL=len(real),
-                   FMU_N_INTEGER=len(integer),
+                   FMU_N_INTEGER=len(integer), FMU_NE=len(ENERGY_FIELDS) * n_legs,
                    FMU_X_VELOCITY=xl.slice("velocity").start,
                    FMU_X_ATTITUDE=xl.slice("attitude").start,
                    FMU_X_OMEGA=xl.slice("angular_velocity").start,
@@ -402,6 +416,8 @@ def _model_header(model: StepModel, model_identifier: str, guid: str) -> str:
             + _c_array("int", "fmu_real_index", [v.index for v in real])
             + _c_array("char *const", "fmu_real_name", [v.name for v in real], _c_string)
             + _c_array("int", "fmu_integer_index", [v.index for v in integer])
+            + _c_array("int", "fmu_energy_index", [yl.slice(f, j).start for j in range(n_legs)
+                                                   for f in ENERGY_FIELDS])
             + "\n#endif /* FMU_MODEL_H */\n")
 
 

@@ -107,7 +107,10 @@ def test_the_fmu_holds_binary_sources_and_the_layout_names(fmus):
     assert set(xl.columns()[:13]) | set(yl.columns()[:3]) <= outputs
     assert {f"leg{j}_{c}" for j in range(model.n_legs)
             for c in ("stroke_m", "force_x_N", "force_z_N", "mode_1")} <= outputs
-    assert outputs <= set(xl.columns()) | set(yl.columns())
+    energy = {f"leg{j}_energy_{what}_J" for j in range(model.n_legs)
+              for what in ("axial", "bending", "friction")}
+    assert energy <= outputs and variables["leg0_energy_axial_J"].unit == "J"
+    assert outputs <= set(xl.columns()) | set(yl.columns()) | energy
 
 
 @pytest.mark.parametrize("name", list(SCENES))
@@ -131,6 +134,15 @@ def test_fmpy_cosimulation_equals_simulate(fmus, name):
         assert np.array_equal(result[f"leg{j}_mode_1"], traj.mode[:, j])
     assert worst <= AGREEMENT, f"{name}: FMU against simulate {worst:.3g}"
     assert traj.mode.max() >= 1                          # the feet did touch down
+    # the energy totals: the sums of the steps' work outputs of the same rollout
+    _, Y = model.rollout(scene.steps)(initial_state(scene), model.default_p, scene.dt)
+    for j in range(model.n_legs):
+        for what in ("axial", "bending", "friction"):
+            steps = np.cumsum(yl.get(np.asarray(Y), f"work_{what}", j))
+            column = result[f"leg{j}_energy_{what}_J"]
+            assert column[0] == 0.0
+            np.testing.assert_allclose(column[1:], steps, rtol=1e-12,
+                                       atol=1e-12 * max(1.0, np.max(np.abs(steps))))
 
 
 #: The thrust: a force (N) and a torque (N·m) at t = 0 that tail off linearly

@@ -44,6 +44,7 @@ typedef struct {
     double u[FMU_NU];   /* inputs: force (N), torque (N m), world frame */
     double time;        /* s */
     double steps;       /* touchdown steps taken since the start */
+    double energy[FMU_NE]; /* per leg, J since the start: axial, bending, friction */
 } State;
 
 /* a serialised state: this tag, the FMU's GUID, then the State's bytes */
@@ -104,6 +105,7 @@ static void reset_state(State *s)
     memset(s->u, 0, sizeof s->u);
     s->time = 0.0;
     s->steps = 0.0;
+    memset(s->energy, 0, sizeof s->energy);
 }
 
 /* I^-1 b for the inertia (xx, yy, zz, xy, xz, yz) by its adjugate; det returned */
@@ -182,6 +184,9 @@ static int step(Instance *m)
     }
     if (!all_finite(m->x_next, FMU_NX)) return 2;
     memcpy(s->x, m->x_next, sizeof s->x);
+    for (i = 0; i < FMU_NE; i++) {
+        s->energy[i] = s->energy[i] + s->y[fmu_energy_index[i]];
+    }
     s->steps += 1.0;
     return 0;
 }
@@ -340,6 +345,7 @@ static double *real_slot(Instance *m, fmi2ValueReference vr)
     case FMU_KIND_PARAMETER: return &m->s.p[i];
     case FMU_KIND_INPUT: return &m->s.u[i];
     case FMU_KIND_STATE: return &m->s.x[i];
+    case FMU_KIND_ENERGY: return &m->s.energy[i];
     default: return &m->s.y[i];
     }
 }
