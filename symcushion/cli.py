@@ -6,13 +6,15 @@ reports progress and turns library errors into one-line messages.
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
 import warnings
 from pathlib import Path
 
 from . import __version__
 from .animate import DEFAULT_FRAMES
+from .interrupts import (EXIT_BAD_INPUT, EXIT_ERRORS, EXIT_INTERRUPTED,  # noqa: F401
+                         EXIT_OUTPUT_EXISTS, EXIT_WARNINGS, Terminated, interrupt_code,
+                         signals_handled)
 from .results import check_out_dir, check_output_file, claim_output
 
 __all__ = ["main"]
@@ -38,19 +40,6 @@ def _cmd_reproduce(args):
     return 0
 
 
-#: Exit statuses (docs/checks.md, "Exit statuses"). A command that works
-#: returns 0; bad input is 2.
-#: A run that gave a finding of severity error (its results are kept and
-#: run.json says ``"status": "errors"``); ``check``: the file has errors.
-EXIT_ERRORS = 1
-#: Bad input: a field, an option, a path (the one-line message names it).
-EXIT_BAD_INPUT = 2
-#: A run that finished with warnings under --strict.
-EXIT_WARNINGS = 3
-#: The output folder holds another run's results and --overwrite was not given.
-EXIT_OUTPUT_EXISTS = 4
-#: Ctrl-C (SIGINT): 128 + 2, as a shell reports it.
-EXIT_INTERRUPTED = 128 + signal.SIGINT
 
 
 def _scene_and_overrides(args):
@@ -97,7 +86,7 @@ def _cmd_simulate(args):
         try:
             traj = _simulate_reporting(scene, model, args, writer)
         except BaseException as exc:
-            if _interrupt_code(exc) is not None:
+            if interrupt_code(exc) is not None:
                 args.kept = _keep_interrupted(writer, meta, exc)
             raise
         _note_no_touchdown(traj)
@@ -416,7 +405,7 @@ def _cmd_envelope(args):
                               scheduler=args.scheduler, workers=args.workers,
                               cache_dir=args.build_dir, progress=True, resume=args.resume)
     except BaseException as exc:
-        if _interrupt_code(exc) is not None:
+        if interrupt_code(exc) is not None:
             args.kept = _kept_batches(out, args.study)
         elif isinstance(exc, RuntimeError):   # a failed gcc command, with its output
             print(f"symcushion envelope: error: {exc}", file=sys.stderr)
@@ -641,102 +630,23 @@ def _add_view_command(sub):
     p.set_defaults(func=_cmd_view)
 
 
-class Terminated(SystemExit):
-    """Raised by the SIGTERM and SIGINT handler; its code is 128 + the signal number."""
-
-
-#: Seconds between re-raisings of a termination that has not reached :func:`main`.
-#: A C extension can swallow an exception raised while it runs Python code:
-#: SWIG's overload dispatch (CasADi's ``Function.call``) tries each signature
-#: and clears the errors of those that fail, so one raise could be lost and the
-#: run go on to its end.
-TERMINATION_REMINDER = 0.1
-
-_pending: int | None = None     # the exit code of a SIGTERM or SIGINT not yet reported
-
-
-def _terminate(signum, frame):
-    """SIGTERM and SIGINT (Ctrl-C) end a command cleanly: temporary files are
-    removed, what is complete is kept (a run's finished blocks, an envelope's
-    finished batches), and :func:`main` exits with 128 + the signal number.
-
-    The termination is remembered and raised again every
-    :data:`TERMINATION_REMINDER` s (SIGALRM) until :func:`main` reports it.
-    """
-    global _pending
-    _pending = 128 + signum
-    signal.setitimer(signal.ITIMER_REAL, TERMINATION_REMINDER, TERMINATION_REMINDER)
-    _remind(signal.SIGALRM, frame)
-
-
-def _remind(signum, frame):
-    """Raise the pending termination, unless an exception is being handled.
-
-    Code in an ``except``, ``finally`` or ``__exit__`` is cleaning up (a
-    propagating termination, or an error on its way to :func:`main`); it is
-    never interrupted, so temporary files are always removed.
-    """
-    if _pending is not None and sys.exc_info()[1] is None:
-        raise Terminated(_pending)
-
-
-def _termination_in(exc: BaseException) -> Terminated | None:
-    """The :class:`Terminated` behind ``exc``, if the signal caused it.
-
-    A signal handler runs wherever Python next checks for signals, which may
-    be inside a C extension calling back into Python (CasADi's ``DM.__array__``
-    under NumPy, for one); such callers wrap the exception in a
-    ``SystemError``, or replace it (SWIG's ``NotImplementedError`` for "wrong
-    number or type of arguments"). A pending SIGTERM, or a termination in the
-    chain of causes, means the signal caused it.
-    """
-    if _pending is not None:
-        return Terminated(_pending)
-    seen = set()
-    while exc is not None and id(exc) not in seen:
-        if isinstance(exc, Terminated):
-            return exc
-        seen.add(id(exc))
-        exc = exc.__cause__ or exc.__context__
-    return None
-
-
-def _interrupt_code(exc: BaseException) -> int | None:
-    """The exit status of an interrupt behind ``exc`` (130 for Ctrl-C, 128 + the
-    signal for a termination), None for any other exception."""
-    if isinstance(exc, KeyboardInterrupt):
-        return EXIT_INTERRUPTED
-    term = _termination_in(exc)
-    return None if term is None else term.code
-
-
 def main(argv=None) -> int:
-    global _pending
     args = _parser().parse_args(argv)
     args.kept = None        # a command that keeps part of its work says what, for the message
-    _pending = None
-    previous = {sig: signal.signal(sig, _terminate) for sig in (signal.SIGTERM, signal.SIGINT)}
-    previous_alarm = signal.signal(signal.SIGALRM, _remind)
-    try:
-        return args.func(args)
-    except (ValueError, TypeError, FileNotFoundError) as exc:
-        if (code := _interrupt_code(exc)) is not None:
+    with signals_handled():
+        try:
+            return args.func(args)
+        except (ValueError, TypeError, FileNotFoundError) as exc:
+            if (code := interrupt_code(exc)) is not None:
+                return _report_termination(args, code)
+            print(f"symcushion {args.command}: error: {exc}", file=sys.stderr)
+            return _error_status(exc)
+        except Exception as exc:
+            if (code := interrupt_code(exc)) is None:
+                raise
             return _report_termination(args, code)
-        print(f"symcushion {args.command}: error: {exc}", file=sys.stderr)
-        return _error_status(exc)
-    except Exception as exc:
-        if (code := _interrupt_code(exc)) is None:
-            raise
-        return _report_termination(args, code)
-    except (Terminated, KeyboardInterrupt) as exc:
-        return _report_termination(args, _interrupt_code(exc))
-    finally:
-        if _pending is not None:
-            signal.setitimer(signal.ITIMER_REAL, 0)
-        _pending = None
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
-        signal.signal(signal.SIGALRM, previous_alarm)
+        except (Terminated, KeyboardInterrupt) as exc:
+            return _report_termination(args, interrupt_code(exc))
 
 
 def _error_status(exc) -> int:

@@ -76,6 +76,13 @@ class Trajectory:
     rows: np.ndarray = field(default=None, repr=False)
     info: dict = field(default_factory=dict)
 
+    def states(self) -> np.ndarray:
+        """The state vector of every row, as columns (nx, T) (``symcushion.layout``)."""
+        if self.rows is None:
+            raise ValueError("this Trajectory keeps no rows; load it with Trajectory.load or "
+                             "take it from simulate to read its states.")
+        return self.rows[:, 1:1 + state_layout(self.n_legs).size].T
+
     @property
     def n_legs(self) -> int:
         return self.foot.shape[1]

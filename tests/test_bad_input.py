@@ -13,7 +13,6 @@ import pytest
 from symcushion.characteristics import Linear, PiecewiseLinear
 from symcushion.checks import PhysicsWarning, RunMonitor, check_scene
 from symcushion.cli import main
-from symcushion.layout import state_layout
 from symcushion.scene import Scene, load_scene, scene_from_dict
 from symcushion.simulate import simulate
 from symcushion.validation import (SceneError, boolean, choice, direction, integer, real,
@@ -48,13 +47,7 @@ def load_error(data) -> str:
 
 def state_matrix(traj):
     """The state columns (nx, steps) of a Trajectory, after each step."""
-    legs = range(traj.foot.shape[1])
-    x = state_layout(len(legs)).pack_columns(
-        len(traj.t), position=traj.position.T, velocity=traj.velocity.T,
-        attitude=traj.attitude.T, angular_velocity=traj.angular_velocity.T,
-        foot=[traj.foot[:, j].T for j in legs], contact=[traj.contact[:, j] for j in legs],
-        force_body=[traj.force[:, j].T for j in legs])
-    return x[:, 1:]
+    return traj.states()[:, 1:]
 
 
 # -- silent wrong physics ------------------------------------------------------

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from symcushion import __version__, cli
+from symcushion import __version__, cli, interrupts
 
 ROOT = Path(__file__).resolve().parents[1]
 FIG3 = ROOT / "studies" / "fig3.toml"
@@ -204,7 +204,7 @@ def _wrapped_termination(args):
 
 
 @pytest.mark.parametrize("raised", (_wrapped_termination,
-                                    lambda args: cli._terminate(signal.SIGTERM, None)))
+                                    lambda args: interrupts.terminate(signal.SIGTERM, None)))
 def test_termination_inside_a_c_extension_still_exits_with_the_signal_code(
         tmp_path, monkeypatch, capsys, raised):
     monkeypatch.setattr(cli, "_cmd_simulate", raised)
@@ -222,7 +222,7 @@ def _swallowing_run(replace_with=None):
     overload dispatch does; it would go on for :data:`SWALLOWED_RUN` s."""
     def run(args):
         try:
-            cli._terminate(signal.SIGTERM, None)
+            interrupts.terminate(signal.SIGTERM, None)
         except BaseException:
             if replace_with is not None:
                 raise replace_with from None
@@ -239,7 +239,7 @@ def test_a_swallowed_termination_is_raised_again(tmp_path, monkeypatch, capsys, 
     code = cli.main(["simulate", str(FIG3), "--out", str(tmp_path / "out"), "--no-plots"])
     assert code == 128 + signal.SIGTERM     # a lost termination would let the run return 0
     assert "terminated" in capsys.readouterr().err
-    assert cli._pending is None
+    assert interrupts.pending() is None
     assert signal.getitimer(signal.ITIMER_REAL) == (0.0, 0.0)
 
 
@@ -248,9 +248,9 @@ def test_the_reminder_does_not_interrupt_cleanup(tmp_path, monkeypatch):
 
     def run(args):
         try:
-            cli._terminate(signal.SIGTERM, None)
+            interrupts.terminate(signal.SIGTERM, None)
         finally:
-            time.sleep(3 * cli.TERMINATION_REMINDER)    # reminders fall due here
+            time.sleep(3 * interrupts.TERMINATION_REMINDER)    # reminders fall due here
             cleaned.append(True)
     monkeypatch.setattr(cli, "_cmd_simulate", run)
     code = cli.main(["simulate", str(FIG3), "--out", str(tmp_path / "out"), "--no-plots"])

@@ -277,3 +277,12 @@ def test_symcushion_simulate_is_callable_after_the_submodule_is_imported():
     scene = symcushion.load_scene(ROOT / "studies" / "fig3.toml").with_(duration=0.005)
     traj = symcushion.simulate(scene, monitor=False)
     assert traj.t.size == 6
+
+
+def test_a_trajectory_gives_back_the_states_of_its_run():
+    scene = load_scene(ROOT / "studies" / "fig3.toml").with_(duration=0.05)
+    model = build_model(scene)
+    traj = simulate(scene, model=model, monitor=False)
+    X, _ = model.rollout(scene.steps)(initial_state(scene), model.default_p, scene.dt)
+    np.testing.assert_array_equal(traj.states()[:, 1:], np.asarray(X))
+    np.testing.assert_array_equal(traj.states()[:, 0], initial_state(scene))

@@ -117,12 +117,7 @@ class Stats:
         if not all(np.all(np.isfinite(a)) for a in arrays):
             self.finite = False
             return
-        legs = range(traj.foot.shape[1])
-        X = state_layout(len(legs)).pack_columns(
-            len(traj.t), position=traj.position.T, velocity=traj.velocity.T,
-            attitude=traj.attitude.T, angular_velocity=traj.angular_velocity.T,
-            foot=[traj.foot[:, j].T for j in legs], contact=[traj.contact[:, j] for j in legs],
-            force_body=[traj.force[:, j].T for j in legs])
+        X = traj.states()
         E, d = inv.map(X.shape[1])(X)
         E, d = np.asarray(E).ravel(), np.asarray(d).reshape(-1, X.shape[1]).T
         if first_row:
