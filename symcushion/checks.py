@@ -29,10 +29,11 @@ from dataclasses import asdict, dataclass
 import casadi as ca
 import numpy as np
 
-from .obstacles import ImplicitSurface, Terrain
+from .obstacles import ImplicitSurface, Terrain, closest_obstacle
 from .scene import Scene
 from .layout import state_layout
 from .stability import stable_dt
+from .strut import SINGULAR_ANGLE
 from .touchdown import build_model, initial_state
 from .validation import SceneError
 
@@ -126,6 +127,13 @@ class Finding:
 # ---------------------------------------------------------------------------
 # helpers
 # ---------------------------------------------------------------------------
+#: A foot's smallest rest stiffness, as a fraction of its largest, below which a
+#: frictionless scene is refused (``free_direction``): 1e-9 is far below any
+#: leg's ratio of bending to axial stiffness (1e-3 for a rigid rod) and far above
+#: round-off of a missing element's zero.
+FREE_DIRECTION_RATIO = 1e-9
+
+
 def _rotations(q):
     """Rotation matrices, shape (n, 3, 3), of unit quaternions q, shape (4, n)."""
     q = q / np.linalg.norm(q, axis=0)
@@ -197,6 +205,7 @@ def check_scene(scene: Scene, model=None, x0=None) -> list:
     findings += _check_terrain(scene, x0)
     findings += _check_surfaces(scene, x0)
     findings += _check_curves(scene)
+    findings += _check_free_directions(scene, x0)
     findings += _check_time_step(scene, model, x0)
     return sorted(findings, key=lambda f: f.severity != "error")
 
@@ -307,6 +316,37 @@ def _sample_surface(k, j, phi, grad, pts, h):
 #: axial element (m), ± a quarter turn for the hinge elements (rad).
 _RANGES = {"S": 1.0, "M_beta": np.pi / 2, "M_gamma": np.pi / 2}
 _SLOPE_SAMPLES = 81
+
+
+def _check_free_directions(scene, x0):
+    """At μ = 0 a foot loaded across its leg needs stiffness in every direction: the
+    frictionless contact step slides the foot along the tangent plane by K⁻¹p, and a
+    direction the leg does not resist (a missing or flat hinge spring) leaves it no
+    solution, so the foot lifts off and the body falls through the obstacle. A leg along
+    the obstacle's normal carries no load across it and is left alone."""
+    if scene.mu > 0:
+        return []
+    out = []
+    R = _rotations(state_layout(len(scene.legs)).get(x0, "attitude")[:, None])[0]
+    _, _, feet = _world_points(scene, np.asarray(x0, float)[:, None])
+    for j, leg in enumerate(scene.legs):
+        D = leg.rest_stiffness_closed_form()
+        values, vectors = np.linalg.eigh(0.5 * (D + D.T))
+        _, normal, _ = closest_obstacle(scene.obstacles, ca.DM(feet[j, :, 0]))
+        across = np.linalg.norm(np.cross(R @ leg.e0, np.asarray(normal, float).ravel()))
+        if across > np.sin(SINGULAR_ANGLE) and \
+                values[0] <= FREE_DIRECTION_RATIO * max(values[-1], 0.0):
+            missing = [name for name in ("M_beta", "M_gamma")
+                       if name not in {el.name for el in leg.elements}]
+            why = (f"it has no {' or '.join(f'`{m}`' for m in missing)}" if missing
+                   else "its hinge springs are flat at rest")
+            out.append(Finding(
+                "free_direction", f"leg {j}: at mu = 0 its foot has no stiffness along "
+                f"{np.round(vectors[:, 0], 3).tolist()} (body axes) at rest — {why} — so the "
+                "frictionless contact step cannot hold it and the body falls through the "
+                "obstacle; give the leg both hinge springs (`M_beta`, `M_gamma`) or set mu > 0.",
+                "error", leg=j, value=float(values[0]), field=f"legs[{j}]"))
+    return out
 
 
 def _check_curves(scene):

@@ -185,3 +185,22 @@ def test_monitor_reports_a_foot_in_contact_off_the_terrain_grid():
     x[foot0:foot0 + 4] = [3.5, 0.0, 0.0, 1.0]                # in contact at x = 3.5 m
     found = RunMonitor(scene).check(np.array([0.01]), x[:, None], np.zeros((1, 1)))
     assert [(f.kind, f.leg, f.severity) for f in found] == [("off_terrain", 0, "error")]
+
+
+def test_a_frictionless_leg_without_a_hinge_spring_is_refused_before_it_falls_through():
+    """μ = 0 and legs tilted 20° with no M_beta: no foot could take load (the contact step
+    finds no slide along the free direction), so check reports it and simulate refuses."""
+    from symcushion.characteristics import Linear as _Linear
+    from symcushion.strut import HingedStrut
+    lander = load_scene(ROOT / "studies" / "tutorial" / "lander.toml")
+    legs = [HingedStrut(hinge=leg.hinge, e0=leg.e0, en=leg.en, length=leg.length,
+                        S=_Linear(1e5), M_gamma=_Linear(2e4)) for leg in lander.legs]
+    scene = lander.with_(legs=legs, mu=0.0)
+    found = [f for f in check_scene(scene) if f.kind == "free_direction"]
+    assert [f.leg for f in found] == [0, 1, 2] and all(f.severity == "error" for f in found)
+    assert "M_beta" in found[0].message and "mu > 0" in found[0].message
+    with pytest.raises(ValueError, match="falls through"):
+        simulate(scene)
+    # with friction, or with both hinge springs, the same legs are accepted
+    assert not [f for f in check_scene(scene.with_(mu=0.5)) if f.kind == "free_direction"]
+    assert not [f for f in check_scene(lander.with_(mu=0.0)) if f.kind == "free_direction"]
