@@ -81,7 +81,7 @@ def _cmd_simulate(args):
     meta = {"scene": read_toml(args.scene), "scene_file": str(args.scene),
             "overrides": overrides, "scene_summary": _summary(scene),
             "versions": versions(), "adaptive": args.adaptive or args.stability,
-            "stability": args.stability}
+            "stability": args.stability, "rtol": args.rtol, "atol": args.atol}
     with ResultWriter(directory, trajectory_columns(len(scene.legs))) as writer:
         try:
             traj = _simulate_reporting(scene, model, args, writer)
@@ -99,9 +99,26 @@ def _cmd_simulate(args):
           f"({traj.info['steps']} steps, {traj.info['wall_seconds']:.2f} s wall, step "
           f"criterion max {traj.info['criterion_max']:.2e}, halvings {traj.info['halvings']}, "
           f"{len(traj.info['events'])} events)")
+    print(_accuracy_line(traj.info))
     if not args.no_plots:
         _figures(traj, scene, directory, args.frames)
     return _run_status(traj.info["warnings"], files["json"], args.strict)
+
+
+def _accuracy_line(info) -> str:
+    """One line on the run's accuracy: its error control or its error estimate."""
+    if info.get("rtol") is not None:
+        return (f"error control rtol {info['rtol']:g}, atol {info['atol']:g}: "
+                f"{info['step_evaluations']} step evaluations, {info['rejected']} rejected "
+                f"pairs, dt {info['dt_min']:.3g} to {info['dt_max']:.3g} s")
+    est = info.get("error_estimate")
+    if not est:
+        return "no error estimate (--no-estimate, an adaptive run, or a single step)"
+    parts = ", ".join(f"{key.replace('peak_', '').replace('_', ' ')} {p['relative_error']:.1e}"
+                      for key, p in est["peaks"].items())
+    verdict = "within" if est["within_rtol"] else "ABOVE"
+    return (f"estimated relative error of the peaks (Richardson, run at "
+            f"{est['companion_dt']:g} s): {parts}; {verdict} rtol {est['rtol']:g}")
 
 
 def _errors(findings) -> list:
@@ -167,8 +184,11 @@ def _simulate_reporting(scene, model, args, writer):
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", PhysicsWarning)
         traj = simulate(scene, model=model, adaptive=args.adaptive or args.stability,
-                        stability=args.stability, progress=True,
-                        monitor=_run_monitor(scene, model), sink=writer)
+                        stability=args.stability, rtol=args.rtol, atol=args.atol,
+                        estimate=not args.no_estimate, progress=True,
+                        monitor=_run_monitor(scene, model), sink=writer,
+                        **({} if args.estimate_rtol is None
+                           else {"estimate_rtol": args.estimate_rtol}))
     for w in caught:
         if not issubclass(w.category, PhysicsWarning):
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
@@ -476,6 +496,19 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--stability", action="store_true",
                    help="cap each step at the explicit stability limit of the legs (implies "
                         "--adaptive; for a dt above the stable step)")
+    p.add_argument("--rtol", type=float, default=None, metavar="RTOL",
+                   help="error control: choose every step by step doubling so that the local "
+                        "error of the strokes and the body's velocity stays below "
+                        "atol + RTOL x their size, e.g. 1e-3 (docs/error-control.md); rows "
+                        "then come at variable times")
+    p.add_argument("--atol", type=float, default=None, metavar="ATOL",
+                   help="absolute tolerance of --rtol in SI units (m, m/s; default 0)")
+    p.add_argument("--no-estimate", action="store_true",
+                   help="fixed-dt runs: skip the error estimate (a companion run at 2 dt, "
+                        "half the cost again)")
+    p.add_argument("--estimate-rtol", type=float, default=None, metavar="RTOL",
+                   help="fixed-dt runs: warn when a peak's estimated relative error exceeds "
+                        "this (default: 1e-2)")
     p.add_argument("--no-plots", action="store_true",
                    help="write no summary.png and no animation.gif")
     p.add_argument("--frames", type=_positive_int, default=DEFAULT_FRAMES, metavar="N",

@@ -20,6 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .error_control import (DEFAULT_ESTIMATE_RTOL, PeakTracker, StepErrorNorm,
+                            ToleranceError, check_tolerances, estimate_report, next_step, step_pair_function)
 from .layout import MODES, output_layout, state_layout
 from .stability import STABILITY_SAFETY, stable_dt
 from .touchdown import (MAX_HALVINGS, STEP_CRITERION_EPS, StepModel, build_model,
@@ -28,7 +30,7 @@ from .validation import real
 from .trajectory import Trajectory, _assemble, initial_output, trajectory_from
 
 __all__ = ["Trajectory", "trajectory_from", "initial_output", "simulate", "save", "RunWarning",
-           "BLOCK_STEPS", "KEEP_ROWS", "MAX_EVENTS"]
+           "BLOCK_STEPS", "KEEP_ROWS", "MAX_EVENTS", "MIN_STEP_FRACTION", "MAX_STEP_FRACTION"]
 
 #: Steps per rollout call: building a 500-step mapaccum takes about 0.1 s and
 #: a block's rows take 0.4 MB (4 legs), so progress updates several times a
@@ -47,6 +49,16 @@ MAX_EVENTS = 10_000
 #: The per-step work outputs summed into run.json's ``energy`` totals.
 ENERGY_FIELDS = ("work_axial", "work_bending", "work_friction")
 
+#: Smallest step of an error-controlled run, as a fraction of the scene's Δt:
+#: 2⁻²⁰ (about 1e-9 s from 1 ms) is far below any step a touchdown needs; a
+#: pair still rejected there is accepted and counted (``info['floor_steps']``).
+MIN_STEP_FRACTION = 2.0 ** -20
+
+#: Largest step of an error-controlled run, as a fraction of the duration: a
+#: free flight has no error to limit the step, and a touchdown must not be
+#: stepped over before the estimate can see it.
+MAX_STEP_FRACTION = 1e-2
+
 class RunWarning(UserWarning):
     """A finding of a run monitor, raised through :mod:`warnings` by the API."""
 
@@ -61,6 +73,7 @@ class _Recorder:
         self.energy = None
         self.kept, self.kept_idx, self.stride, self.count = [], [], 1, 0
         self.last_row = None
+        self.peaks = PeakTracker(model.n_legs, model.scene.gravity)
         from tqdm.auto import tqdm
 
         self.bar = tqdm(total=model.scene.duration, unit="s", file=sys.stderr, leave=False,
@@ -98,17 +111,20 @@ class _Recorder:
 
     def _monitor(self, t, X, Y):
         for finding in self.monitor.check(t, X, Y) or []:
-            entry = {"time": float(t[-1]), "kind": "warning",
-                     "severity": str(getattr(finding, "severity", "warning")),
-                     "message": str(finding.message), "details": finding.to_dict()}
-            self.warnings.append(entry)
-            if len(self.events) < MAX_EVENTS:
-                self.events.append(entry)
-            text = f"t = {entry['time']:.4g} s: {entry['message']}"
-            if self.progress:
-                self.bar.write(f"warning: {text}", file=sys.stderr)
-            else:
-                warnings.warn(text, RunWarning, stacklevel=4)
+            self.warn({"time": float(t[-1]), "kind": "warning",
+                       "severity": str(getattr(finding, "severity", "warning")),
+                       "message": str(finding.message), "details": finding.to_dict()})
+
+    def warn(self, entry: dict, stacklevel: int = 5):
+        """Record a warning of the run (a dict with ``time`` and ``message``) and show it."""
+        self.warnings.append(entry)
+        if len(self.events) < MAX_EVENTS:
+            self.events.append(entry)
+        text = f"t = {entry['time']:.4g} s: {entry['message']}"
+        if self.progress:
+            self.bar.write(f"warning: {text}", file=sys.stderr)
+        else:
+            warnings.warn(text, RunWarning, stacklevel=stacklevel)
 
     def _energy(self, Y):
         """Add the block's per-leg work (axial, bending, friction; J) to the run's totals."""
@@ -133,6 +149,7 @@ class _Recorder:
                 f"the simulation produced non-finite body positions near t = {t[0]:.4g} s; "
                 "reduce `dt` or check the scene.")
         self._events(t, Y)
+        self.peaks.update(Y)
         if self.monitor is not None and self.count:
             self._monitor(t, X, Y)
         if self.sink is not None:
@@ -175,7 +192,8 @@ class _Recorder:
 
 def _check_arguments(scene, model, x0, p, adaptive, eps, stability, monitor, sink, keep_rows):
     """Validate :func:`simulate`'s arguments and check the scene (``checks.preflight``);
-    return scene, model, x0, p, stability, monitor, keep_rows."""
+    return scene, model, x0, p, stability, monitor, keep_rows. ``adaptive`` is true
+    for every variable-step run (the §3 criterion or error control)."""
     from .checks import preflight
     from .scene import Scene, load_scene
 
@@ -225,8 +243,10 @@ def _check_arguments(scene, model, x0, p, adaptive, eps, stability, monitor, sin
 
 def simulate(scene, *, model: StepModel | None = None, x0=None, p=None,
              adaptive: bool = False, eps: float = STEP_CRITERION_EPS,
-             stability: bool | float = False, progress: bool = False, monitor=True,
-             sink=None, keep_rows: int | None = None) -> Trajectory:
+             stability: bool | float = False, rtol: float | None = None,
+             atol: float | None = None, estimate: bool = True,
+             estimate_rtol: float = DEFAULT_ESTIMATE_RTOL, progress: bool = False,
+             monitor=True, sink=None, keep_rows: int | None = None) -> Trajectory:
     """Simulate a scene.
 
     Parameters
@@ -246,10 +266,29 @@ def simulate(scene, *, model: StepModel | None = None, x0=None, p=None,
         1 − n_k·n_{k+1} < ``eps`` (§3) by halving Δt for a step (up to
         :data:`MAX_HALVINGS` times) where a contact normal turns too fast.
     stability : bool or float
-        Adaptive runs only: also cap each step at :data:`STABILITY_SAFETY`
-        (``True``) or the given fraction in (0, 1] × ``stable_dt`` of its start
-        state. ``info`` then has ``stability_capped``; every adaptive run
-        reports ``dt_min``, the smallest step taken (the final step aside).
+        Adaptive and error-controlled runs only: also cap each step at
+        :data:`STABILITY_SAFETY` (``True``) or the given fraction in (0, 1] ×
+        ``stable_dt`` of its start state. ``info`` then has
+        ``stability_capped``; every adaptive run reports ``dt_min``, the
+        smallest step taken (the final step aside).
+    rtol, atol : float, optional
+        Error control (docs/error-control.md): steps chosen by step doubling
+        (two steps of h against one of 2h, every pair) so that the local
+        error of the legs' forces and strokes and of the body's velocity
+        stays below ``atol + rtol`` × their largest size so far (``rtol`` in
+        (0, 1); ``atol`` ≥ 0 in the groups' SI units N, m, m/s, default 0).
+        The scene's Δt is the first pair's 2h; rows come at the variable
+        times of the steps. ``info`` reports ``steps``, ``step_evaluations``,
+        ``rejected``, ``dt_min``, ``dt_max``. Ignores ``adaptive`` and ``eps``.
+    estimate : bool
+        Fixed-Δt runs: estimate the error of the peaks (specific force, leg
+        force, stroke) and of the final state by Richardson's rule from a
+        companion run at about 2Δt (half the cost again), reported in
+        ``info['error_estimate']``; a peak whose estimated relative error
+        exceeds ``estimate_rtol`` gives a warning that names a Δt to use.
+    estimate_rtol : float
+        Tolerance of that warning, in (0, 1) (default
+        :data:`~symcushion.error_control.DEFAULT_ESTIMATE_RTOL`).
     progress : bool
         Show a progress bar on the terminal (tqdm; silent when not a TTY) and
         print monitor findings as ``warning:`` lines instead of raising
@@ -268,13 +307,24 @@ def simulate(scene, *, model: StepModel | None = None, x0=None, p=None,
     keep_rows : int, optional
         Default :data:`KEEP_ROWS` with a sink, all rows without one.
     """
+    rtol, atol = check_tolerances(rtol, atol)
+    if estimate_rtol is None:
+        raise ToleranceError("`estimate_rtol` must be a number in (0, 1), got None; give e.g. "
+                             f"estimate_rtol={DEFAULT_ESTIMATE_RTOL:g}, or estimate=False.")
+    estimate_rtol, _ = check_tolerances(estimate_rtol, None, "estimate_rtol")
     scene, model, x0, p, stability, monitor, keep_rows = _check_arguments(
-        scene, model, x0, p, adaptive, eps, stability, monitor, sink, keep_rows)
+        scene, model, x0, p, adaptive or rtol is not None, eps, stability, monitor, sink,
+        keep_rows)
     started = time.perf_counter()
     recorder = _Recorder(model, x0, sink, monitor, progress, keep_rows)
     try:
-        if not adaptive:
-            info = _run_fixed(model, x0, p, recorder)
+        if rtol is not None:
+            info = _run_controlled(model, x0, p, rtol, atol, recorder, stability)
+        elif not adaptive:
+            info = _run_fixed(model, x0, p, recorder.block)
+            info["rollout_seconds"] = time.perf_counter() - started
+            if estimate:
+                _estimate_fixed(model, x0, p, info, recorder, estimate_rtol)
         else:
             info = _run_adaptive(model, x0, p, eps, recorder, stability)
     except BaseException as exc:
@@ -293,19 +343,51 @@ def simulate(scene, *, model: StepModel | None = None, x0=None, p=None,
     traj.info["method"] = scene.method
     traj.info["gravity"] = scene.gravity      # the vertical of the angles, for Trajectory.load
     traj.info["name"] = scene.name
+    traj.info["peaks"] = dict(recorder.peaks.values)
     return traj
 
 
-def _run_fixed(model, x0, p, recorder) -> dict:
+def _run_fixed(model, x0, p, on_block, dt=None, steps=None) -> dict:
+    """Roll out ``steps`` steps of ``dt`` (default the scene's) in blocks, handing
+    each block's times, states and outputs to ``on_block(t, X, Y)``."""
     scene = model.scene
-    steps, dt, done, x = scene.steps, scene.dt, 0, x0
+    dt = scene.dt if dt is None else dt
+    steps = scene.steps if steps is None else steps
+    done, x = 0, x0
     while done < steps:
         block = min(BLOCK_STEPS, steps - done)
         X, Y = model.rollout(block)(x, p, dt)
         X, Y = np.asarray(X, float), np.asarray(Y, float)
-        recorder.block(dt * np.arange(done + 1, done + block + 1), X, Y)
+        on_block(dt * np.arange(done + 1, done + block + 1), X, Y)
         x, done = X[:, -1], done + block
-    return {"dt": dt, "steps": steps, "halvings": 0, "final_state": x}
+    return {"dt": dt, "steps": steps, "halvings": 0, "final_state": x,
+            "step_evaluations": steps}
+
+
+def _estimate_fixed(model, x0, p, info, recorder, rtol):
+    """The error estimate of a finished fixed-Δt run (``info['error_estimate']``): a
+    companion run of half as many steps over the same time, Richardson's rule on
+    the peaks and the final state, a warning per peak above ``rtol``."""
+    steps, dt = info["steps"], info["dt"]
+    if steps < 2:
+        info["error_estimate"] = None       # one step has no coarser companion
+        return
+    started = time.perf_counter()
+    companion_steps = steps // 2
+    companion_dt = steps * dt / companion_steps
+    peaks = PeakTracker(model.n_legs, model.scene.gravity)
+    peaks.update(initial_output(model, x0)[:, None])
+    companion = _run_fixed(model, x0, p, lambda t, X, Y: peaks.update(Y), companion_dt,
+                           companion_steps)
+    report, messages = estimate_report(
+        recorder.peaks.values, peaks.values, info["final_state"], companion["final_state"],
+        dt=dt, companion_dt=companion_dt, scene=model.scene, rtol=rtol)
+    report["companion_seconds"] = time.perf_counter() - started
+    info["error_estimate"] = report
+    t_end = steps * dt
+    for message in messages:
+        recorder.warn({"time": t_end, "kind": "warning", "severity": "warning",
+                       "message": message, "details": {"kind": "error_estimate"}}, stacklevel=4)
 
 
 def _normals(model, y):
@@ -314,11 +396,32 @@ def _normals(model, y):
     return yl.legs(y, "in_contact") > 0.5, yl.legs(y, "normal")
 
 
+class _RowBuffer:
+    """Rows of a variable-step run, handed to the recorder in blocks of :data:`BLOCK_STEPS`."""
+
+    def __init__(self, recorder):
+        self.recorder = recorder
+        self.ts, self.xs, self.ys = [], [], []
+
+    def add(self, t, x, y):
+        self.ts.append(t)
+        self.xs.append(np.asarray(x, float).ravel())
+        self.ys.append(np.asarray(y, float).ravel())
+        if len(self.ts) == BLOCK_STEPS:
+            self.flush()
+
+    def flush(self):
+        if self.ts:
+            self.recorder.block(np.array(self.ts), np.column_stack(self.xs),
+                                np.column_stack(self.ys))
+            self.ts, self.xs, self.ys = [], [], []
+
+
 def _run_adaptive(model, x0, p, eps, recorder, stability=0.0) -> dict:
     scene, step = model.scene, model.step
     t_end, dt = scene.duration, scene.dt
     t, x, steps = 0.0, x0, 0
-    ts, xs, ys = [], [], []
+    rows = _RowBuffer(recorder)
     last_contact, last_normal = None, None
     halvings = capped = 0
     dt_min = np.inf
@@ -344,17 +447,59 @@ def _run_adaptive(model, x0, p, eps, recorder, stability=0.0) -> dict:
             dt_min = min(dt_min, h)
         t += h
         steps += 1
-        ts.append(t)
-        xs.append(x)
-        ys.append(np.asarray(y, float).ravel())
-        if len(ts) == BLOCK_STEPS:
-            recorder.block(np.array(ts), np.column_stack(xs), np.column_stack(ys))
-            ts, xs, ys = [], [], []
+        rows.add(t, x, y)
         last_contact, last_normal = contact, normal
-    if ts:
-        recorder.block(np.array(ts), np.column_stack(xs), np.column_stack(ys))
+    rows.flush()
     info = {"dt": dt, "steps": steps, "halvings": halvings, "eps": eps, "final_state": x,
             "dt_min": dt_min}
+    if stability:
+        info["stability_capped"] = capped
+    return info
+
+
+def _run_controlled(model, x0, p, rtol, atol, recorder, stability=0.0) -> dict:
+    """Error-controlled stepping: step doubling on every pair of steps, the
+    standard controller (``symcushion.error_control``); rows at every step."""
+    scene = model.scene
+    pair = step_pair_function(model.step)
+    norm = StepErrorNorm(scene, rtol, atol, x0)
+    t_end = scene.duration
+    h_min, h_max = MIN_STEP_FRACTION * scene.dt, MAX_STEP_FRACTION * t_end
+    h, t, x = scene.dt / 2, 0.0, np.asarray(x0, float)
+    rows = _RowBuffer(recorder)
+    steps = evaluations = rejected = floor = capped = 0
+    dt_min, dt_max = np.inf, 0.0
+    while t < t_end - 1e-12 * t_end:
+        remaining = (t_end - t) / 2
+        h = min(h, h_max, remaining)
+        if stability:
+            h_stable = stability * stable_dt(model, x, p)
+            if h_stable < h:
+                h, capped = h_stable, capped + 1
+        x1, y1, x2, y2, x_big, y_big = pair(x, p, h)
+        evaluations += 3
+        err = norm(np.asarray(x2, float).ravel(), np.asarray(y2, float).ravel(),
+                   np.asarray(x_big, float).ravel(), np.asarray(y_big, float).ravel(), h)
+        if not np.isfinite(err):
+            err = np.inf
+        if err > 1 and h > h_min:
+            rejected += 1
+            h = max(h_min, next_step(h, err))
+            continue
+        floor += err > 1
+        if h < remaining * (1 - 1e-12):       # not the final, shortened pair
+            dt_min, dt_max = min(dt_min, h), max(dt_max, h)
+        rows.add(t + h, x1, y1)
+        t = t + 2 * h if h < remaining else t_end
+        rows.add(t, x2, y2)
+        x = np.asarray(x2, float).ravel()
+        norm.accept(x, np.asarray(y2, float).ravel())
+        steps += 2
+        h = next_step(h, err)
+    rows.flush()
+    info = {"dt": scene.dt, "steps": steps, "halvings": 0, "rtol": rtol, "atol": atol,
+            "final_state": x, "step_evaluations": evaluations, "rejected": rejected,
+            "floor_steps": int(floor), "dt_min": dt_min, "dt_max": dt_max}
     if stability:
         info["stability_capped"] = capped
     return info
