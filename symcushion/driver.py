@@ -112,7 +112,8 @@ class _Recorder:
 
     def _monitor(self, t, X, Y):
         for finding in self.monitor.check(t, X, Y) or []:
-            self.warn({"time": float(t[-1]), "kind": "warning",
+            when = getattr(finding, "time", None)      # the finding's own time, not the block's
+            self.warn({"time": float(t[-1] if when is None else when), "kind": "warning",
                        "severity": str(getattr(finding, "severity", "warning")),
                        "message": str(finding.message), "details": finding.to_dict()})
 
@@ -123,7 +124,8 @@ class _Recorder:
             self.events.append(entry)
         text = f"t = {entry['time']:.4g} s: {entry['message']}"
         if self.progress:
-            self.bar.write(f"warning: {text}", file=sys.stderr)
+            label = "error" if entry.get("severity") == "error" else "warning"
+            self.bar.write(f"{label}: {text}", file=sys.stderr)
         else:
             warnings.warn(text, RunWarning, stacklevel=stacklevel)
 

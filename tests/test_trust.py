@@ -2,6 +2,7 @@
 runs, output folders that are never silently mixed, angles in explicit units,
 ``symcushion check`` on every kind of file."""
 import json
+import re
 import os
 import signal
 import subprocess
@@ -117,6 +118,10 @@ def test_a_run_with_an_error_exits_non_zero_and_keeps_its_marked_results(tmp_pat
     assert simulate(fast, "--out", out, "--duration", "0.02") == cli.EXIT_ERRORS == 1
     err = capsys.readouterr().err
     assert "error: t = " in err and "passed through the obstacle" in err
+    # while it runs, an error is printed as one, at the finding's own time
+    live = [line for line in err.splitlines() if "passed through" in line][0]
+    found_at = re.search(r"at t = ([0-9.e-]+) s", live).group(1)
+    assert live.startswith(f"error: t = {float(found_at):.4g} s")
     meta = json.loads((out / "fig3" / "run.json").read_text())
     assert meta["status"] == "errors" and meta["errors"] >= 2
     assert {"pass_through", "body_inside"} <= {w["details"]["kind"] for w in meta["warnings"]
