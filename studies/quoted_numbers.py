@@ -328,9 +328,16 @@ def problems(sources=SOURCES, root: Path = ROOT) -> list:
             + [f"key `{key}` is quoted in none of {', '.join(DOCS)}" for key in sorted(known - found)])
 
 
-def _short(text: str) -> str:
-    text = text.strip()
-    return text if "\n" not in text else f"{text.count(chr(10)) + 1} lines: {text[:60]!r}..."
+def difference(old: str, new: str) -> str:
+    """``old -> new``; for a multi-line value, its first differing line and how many differ."""
+    old_lines, new_lines = old.strip().splitlines(), new.strip().splitlines()
+    if len(old_lines) == len(new_lines) == 1:
+        return f"{old.strip()} -> {new.strip()}"
+    pairs = [(i, a, b) for i, (a, b) in enumerate(zip(old_lines, new_lines)) if not same(a, b)]
+    if not pairs:
+        return f"{len(old_lines)} lines -> {len(new_lines)} lines"
+    i, a, b = pairs[0]
+    return f"{len(pairs)} of {len(new_lines)} lines differ; line {i + 1}: {a} -> {b}"
 
 
 def main(argv=None) -> int:
@@ -361,7 +368,7 @@ def main(argv=None) -> int:
     old = stale(values)
     for doc, key, before, after in old:
         print(f"{'stale' if args.check else 'updated'}: {doc}: {key}: "
-              f"{_short(before)!s} -> {_short(after)!s}")
+              f"{difference(before, after)}")
     if not args.check:
         changed = rewrite(values)
         print(f"rewrote {', '.join(changed)}" if changed else "every quoted value is fresh")
