@@ -237,7 +237,7 @@ def estimate_report(peaks: dict, companion_peaks: dict, x_final, companion_final
         report["suggested_dt"] = suggested
         for label, unit, value, err, rel in over:
             messages.append(
-                f"the {label} ({value:.4g} {unit}) has an estimated error of {rel:.2g} "
+                f"the {label} ({value:.4g} {unit}) has an estimated relative error of {rel:.3g} "
                 f"(±{err:.3g} {unit}), above rtol = {rtol:g}: Δt = {dt:g} s is too coarse for "
                 f"it; use Δt ≤ {suggested:.2g} s (--dt {suggested:.2g}) or error control "
                 f"(--rtol {rtol:g}); estimated from a run at {companion_dt:g} s "

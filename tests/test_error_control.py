@@ -50,12 +50,12 @@ def test_estimate_is_within_a_factor_3_of_the_true_error(hop):
 def test_warning_fires_at_coarse_dt_and_names_a_dt_that_meets_it():
     scene = load_scene(STUDIES / "lunar_lander300.toml").with_(dt=0.02)   # the user's run
     model = build_model(scene)
-    with pytest.warns(RunWarning, match=r"estimated error .* use Δt ≤ .* \(--dt "):
+    with pytest.warns(RunWarning, match=r"estimated relative error .* use Δt ≤ .* \(--dt "):
         run = simulate(scene, model=model, monitor=False)
     est = run.info["error_estimate"]
     assert not est["within_rtol"]
     assert est["suggested_dt"] < 0.02
-    assert any("estimated error" in w["message"] for w in run.info["warnings"])
+    assert any("estimated relative error" in w["message"] for w in run.info["warnings"])
     # the named step follows from the worst peak's estimate at order 1, with a margin
     worst = min(max(p["relative_error"] for p in est["peaks"].values()), 1.0)
     assert est["suggested_dt"] == pytest.approx(0.5 * 0.02 * est["rtol"] / worst)
