@@ -13,8 +13,10 @@ Questions (docs/absorbers.md, "What it measures"):
    printed law and the memory law: the stroke crushed in steps whose axial
    force is below 2.9 kN (the crush force is 3 kN).
 3. The order of the final position over Δt = 2 … 0.25 ms against a
-   31.25-µs run, for the lunar lander under both laws and the damped lander
-   (whose massless feet flicker behind their dampers: docs/absorbers.md).
+   31.25-µs run, for the lunar lander under both laws and the damped lander.
+4. The damped lander's damping time τ = c/k (the same on every element, or on
+   the axial element alone): the rest spread, and how often the sliding
+   downhill foot leaves the ground in the first 0.5 s.
 
 Output: the tables on stdout. Run: ``python studies/absorbers.py``.
 """
@@ -25,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from symcushion.layout import output_layout, state_layout
-from symcushion.scene import load_scene
+from symcushion.scene import load_scene, read_toml, scene_from_dict
 from symcushion.touchdown import build_model, initial_state
 
 HERE = Path(__file__).resolve().parent
@@ -36,6 +38,8 @@ SETTLED = 0.5
 #: Steps of the order fit and the reference step (s).
 ORDER_STEPS = (2e-3, 1e-3, 5e-4, 2.5e-4)
 REFERENCE_STEP = 3.125e-5
+#: Damping times of the sweep (s).
+DAMPING_TIMES = (0.0, 1e-3, 2e-3, 3.5e-3, 6e-3)
 
 
 def rollout(scene, dt):
@@ -85,6 +89,37 @@ def final_order(scene):
     return errors, float(np.polyfit(np.log(ORDER_STEPS), np.log(errors), 1)[0])
 
 
+def with_damping_time(tau, hinges=True):
+    """The damped lander with every element's damping c = τ·k (the hinge springs' only
+    if ``hinges``)."""
+    data = read_toml(DAMPED)
+    for name in ("S", "M_beta", "M_gamma"):
+        element = data["legs"][name]
+        element.pop("damping", None)
+        if tau > 0 and (hinges or name == "S"):
+            element["damping"] = tau * element["stiffness"]
+    return scene_from_dict(data)
+
+
+def liftoffs(scene, dt=1e-3, until=SETTLED):
+    """How often each foot leaves the ground before ``until``."""
+    X, _ = rollout(scene.with_(duration=until), dt)
+    contact = state_layout(len(scene.legs)).legs(X, "contact") > 0.5
+    return np.sum(np.diff(contact.astype(int), axis=1) < 0, axis=1)
+
+
+def damping_sweep():
+    print("\ndamped lander against its damping time τ = c/k, Δt = 1 ms")
+    print("  τ [ms]  dampers         std after 0.5 s [m/s²]   downhill foot's lift-offs < 0.5 s")
+    for tau in DAMPING_TIMES:
+        for hinges in ((True, False) if tau > 0 else (True,)):
+            scene = with_damping_time(tau, hinges)
+            _, std = rest_measures(scene, 1e-3)
+            where = "every element" if hinges else "axial only"
+            where = where if tau > 0 else "none"
+            print(f"  {tau * 1e3:6.1f}  {where:14s}  {std:22.4f}   {liftoffs(scene)[0]:10d}")
+
+
 def main():
     damped = load_scene(DAMPED)
     print(f"damped lander after t = {SETTLED} s ({damped.hysteresis} law):")
@@ -105,6 +140,7 @@ def main():
                         ("damped lander", damped)):
         errors, order = final_order(scene)
         print(f"  {name:16s} " + "".join(f"{e:12.2e}" for e in errors) + f"   {order:5.2f}")
+    damping_sweep()
 
 
 if __name__ == "__main__":

@@ -60,7 +60,8 @@ class LegInput:
     ``force_body``) and its foot at the start ``rho0`` (body frame); under
     the memory law (``symcushion.absorber``) its axial set at the start
     ``stroke_set`` and the mean stroke rate of the previous step
-    ``stroke_chord`` (else None), with ``fns`` holding the strut's
+    ``stroke_chord`` and of the hinge angles ``bend_chord`` (else None), with
+    ``fns`` holding the strut's
     ``memory_functions`` too; then ``rest`` is the free foot at the end of the
     step and ``rest_start`` the free foot at its start (a damped foot relaxes
     over the step)."""
@@ -73,6 +74,7 @@ class LegInput:
     rho0: ca.SX
     stroke_set: ca.SX | None = None
     stroke_chord: ca.SX | None = None
+    bend_chord: ca.SX | None = None
     rest_start: ca.SX | None = None
 
 
@@ -152,9 +154,10 @@ class FeetStep:
     def damper_rate(self, leg: LegInput, rho_s):
         """(a, b) of the dampers' end rate a·δ_S + b by (A3), from the foot ρ_s at
         the start of the step and the previous step's mean rate."""
-        x0 = leg.fns["strut_geometry"](rho_s)[1]                       # δ_S at the start
+        x0 = leg.fns["strut_deflections"](rho_s)               # δ_S, β, γ − γ₀ at the start
         h = self.poses.h
-        return 1.5 / h, -1.5 * x0 / h - 0.5 * leg.stroke_chord          # (A3)
+        chords = ca.vertcat(leg.stroke_chord, leg.bend_chord)
+        return 1.5 / h, -1.5 * x0 / h - 0.5 * chords                    # (A3)
 
     @staticmethod
     def memory_linearisation(leg: LegInput, rho_s, d, rate):
@@ -287,7 +290,7 @@ class FeetStep:
         foot_w = ca.if_else(stays, foot_proj, foot_w)
         rho1 = ca.if_else(stays, P.R1.T @ (foot_w - P.pos1), rho1)
         P1 = ca.if_else(stays, out["P"], ca.DM.zeros(3))
-        stroke_set, chord = leg.stroke_set, leg.stroke_chord
+        stroke_set, chord, bend_chord = leg.stroke_set, leg.stroke_chord, leg.bend_chord
         if stroke_set is not None:
             # the end force and set of the memory law at the end foot (A1)-(A3): the
             # stroke grows only at the loading curve's force, whatever the foot did
@@ -295,8 +298,10 @@ class FeetStep:
             P1 = ca.if_else(stays, fns["strut_force_memory"](rho1, stroke_set, leg.p_leg, *rate),
                             ca.DM.zeros(3))
             stroke_set = fns["strut_next_set"](rho1, stroke_set, leg.p_leg)
-            chord = (fns["strut_geometry"](rho1)[1] - fns["strut_geometry"](rho_s)[1]) / h
+            moved = (fns["strut_deflections"](rho1) - fns["strut_deflections"](rho_s)) / h
+            # a free foot's hinge angles return to rest at once: no rate to carry
+            chord, bend_chord = moved[0], ca.if_else(stays, moved[1:], ca.DM.zeros(2))
         return dict(in_contact=in_contact, active=active, stays=stays, rho_s=rho_s, r_s=r_s,
                     l=l, n_b=n_b, v_rel=v_rel, normal_w=normal_w, out=out, rho1=rho1,
                     foot_w=foot_w, P1=P1, locked=ca.SX(0), split=split, l_whole=l_whole,
-                    stroke_set=stroke_set, stroke_chord=chord)
+                    stroke_set=stroke_set, stroke_chord=chord, bend_chord=bend_chord)

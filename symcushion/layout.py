@@ -97,7 +97,7 @@ BODY_STATE_FIELDS = (
     Field("attitude", "1", "unit quaternion (w, x, y, z), body → world", _WXYZ),
     Field("angular_velocity", "rad_s", "angular velocity, body axes", _XYZ),
 )
-#: Leg block of the state: 9 entries per leg.
+#: Leg block of the state: 11 entries per leg.
 LEG_STATE_FIELDS = (
     Field("foot", "m", "foot position, world frame (the stored contact point)", _XYZ),
     Field("contact", "1", "1 while the foot is in contact, else 0; with events = 'lock', "
@@ -111,6 +111,9 @@ LEG_STATE_FIELDS = (
     Field("stroke_chord", "m_s", "mean stroke rate of the last step, (x₁ − x₀)/Δt, which "
           "the axial dampers' rate (A3) of the next step reads (0 for a free foot, and "
           "under the printed law)", default=0.0),
+    Field("bend_chord", "rad_s", "mean rates of the hinge angles β and γ over the last "
+          "step, which the hinge dampers' rate (A3) of the next step reads (0 for a free "
+          "foot, and under the printed law)", ("beta", "gamma"), default=0.0),
 )
 #: Body block of the per-step output: 3 entries.
 BODY_OUT_FIELDS = (

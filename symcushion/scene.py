@@ -204,18 +204,13 @@ class Scene:
             raise TypeError(f"`name` must be a string, got {show(self.name)}.")
 
     def _check_dampers(self):
-        """Dampers act on the axial element, under the memory law."""
+        """Dampers act under the memory law, on any element."""
         for j, leg in enumerate(self.legs):
             for el in leg.elements:
-                if not el.curve.has_damper:
-                    continue
-                if el.name != "S":
-                    raise ValueError(f"leg {j}: `{el.name}` has a damper; dampers act in "
-                                     "parallel with the axial element `S` only. Move it there "
-                                     "or remove it.")
-                if self.hysteresis != "memory":
-                    raise ValueError(f"leg {j}: `S` has a damper, which the printed law "
-                                     "P(δ, sign δ′) does not have; set hysteresis = 'memory'.")
+                if el.curve.has_damper and self.hysteresis != "memory":
+                    raise ValueError(f"leg {j}: `{el.name}` has a damper, which the printed "
+                                     "law P(δ, sign δ′) does not have; set hysteresis = "
+                                     "'memory'.")
 
     def _check_memory(self):
         """The memory law's conditions: no event rule, no hinge spring with memory."""

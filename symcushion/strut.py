@@ -285,9 +285,15 @@ class HingedStrut:
 
     @property
     def axial_state(self) -> bool:
-        """True if the axial element needs the memory law's state: a set or a damper."""
-        return any(el.name == "S" and (el.curve.has_memory or el.curve.has_damper)
+        """True if the leg needs the memory law's state: an axial set, or a damper on
+        any of its elements (whose rate (A3) reads the last step's mean rates)."""
+        return any((el.name == "S" and el.curve.has_memory) or el.curve.has_damper
                    for el in self.elements)
+
+    def deflections_expr(self, r):
+        """(δ_S, β, γ − γ₀): the elements' own deflections at foot ``r`` (m, rad)."""
+        x = self._deflections(self.geometry(r))
+        return ca.vertcat(x["S"], x["M_beta"], x["M_gamma"])
 
     def _axial(self) -> _Element:
         return next(el for el in self.elements if el.name == "S")
@@ -298,7 +304,9 @@ class HingedStrut:
         The bending elements take their loading curves (an elastic hinge).
         ``r_regime`` (default ``r``): the foot position that picks the axial
         element's regime (``absorber.memory_force``). ``rate`` = (a, b): the
-        stroke rate of the axial dampers is a·δ_S + b, the affine form of (A3).
+        deflection rates of the dampers are a·x + b, the affine form of (A3), with
+        x = (δ_S, β, γ − γ₀) and b of length 3 (or a scalar for the axial damper
+        alone).
         """
         g = self.geometry(r)
         x = self._deflections(g)
@@ -310,9 +318,11 @@ class HingedStrut:
                 forces["S"] = absorber.memory_force(el.curve, x["S"], s, theta, x_regime)
             else:
                 forces[el.name] = el.curve.force(x[el.name], 0.0, theta)
-            if el.name == "S" and el.curve.has_damper:
-                forces["S"] = forces["S"] + absorber.damper_force(
-                    el.curve, rate[0] * x["S"] + rate[1])
+            if el.curve.has_damper:
+                k = ("S", "M_beta", "M_gamma").index(el.name)
+                offset = rate[1] if isinstance(rate[1], (int, float)) else rate[1][k]
+                forces[el.name] = forces[el.name] + absorber.damper_force(
+                    el.curve, rate[0] * x[el.name] + offset)
         forces["M_gamma"] = -self.sigma * forces["M_gamma"]            # docs/paper-notes.md §2
         return (forces["S"] * g["e_S"] + forces["M_beta"] / g["L"] * g["e_beta"]
                 + forces["M_gamma"] / g["L"] * g["e_gamma"])           # (2.1)
@@ -338,7 +348,7 @@ class HingedStrut:
             r, r_regime = ca.SX.sym("r", 3), ca.SX.sym("r_regime", 3)
             s = ca.SX.sym("stroke_set")
             p = ca.SX.sym("p", len(self.param_names))
-            rate = ca.SX.sym("rate_gain"), ca.SX.sym("rate_offset")
+            rate = ca.SX.sym("rate_gain"), ca.SX.sym("rate_offset", 3)
             el = self._axial()
             theta = self._theta(el, p)
             P = self.memory_force_expr(r, s, p, rate=rate)
@@ -349,7 +359,9 @@ class HingedStrut:
                 s_next = absorber.next_set(el.curve, delta_S, s, theta)
             else:                       # a damped elastic element: nothing to remember
                 s_next = s
-            free = absorber.relaxed_deflection(el.curve, x0, s, rate0, dt, theta)
+            free = (absorber.relaxed_deflection(el.curve, x0, s, rate0, dt, theta)
+                    if el.curve.has_memory or el.curve.has_damper
+                    else absorber.free_deflection(el.curve, s, theta))
             free = ca.DM(self.hinge) + (self.length + free) * ca.DM(self.e0)
             names = ["r", "stroke_set", "p", "rate_gain", "rate_offset"]
             self._memory_functions = {
@@ -360,6 +372,8 @@ class HingedStrut:
                     names + ["r_regime"], ["Dp"]),
                 "strut_next_set": ca.Function("strut_next_set", [r, s, p], [s_next],
                                               ["r", "stroke_set", "p"], ["next_set"]),
+                "strut_deflections": ca.Function(
+                    "strut_deflections", [r], [self.deflections_expr(r)], ["r"], ["x"]),
                 "strut_free_foot": ca.Function(
                     "strut_free_foot", [s, p, x0, rate0, dt], [free],
                     ["stroke_set", "p", "stroke_start", "mean_rate", "dt"], ["r"]),

@@ -218,6 +218,7 @@ def _memory_leg_input(leg, fns, p_leg, foot, rho0, h) -> LegInput:
     rest = fns["strut_free_foot"](foot["stroke_set"], p_leg, stroke0, foot["stroke_chord"], h)
     return LegInput(strut=leg, fns=fns, p_leg=p_leg, rest=rest, foot=foot, rho0=rho0,
                     stroke_set=foot["stroke_set"], stroke_chord=foot["stroke_chord"],
+                    bend_chord=foot["bend_chord"],
                     rest_start=rho0)
 
 
@@ -251,7 +252,7 @@ def build_model(scene: Scene) -> StepModel:
     pos, vel, quat, omega = (body[k] for k in ("position", "velocity", "attitude",
                                                 "angular_velocity"))
     feet = [{f: body[f][j] for f in ("foot", "contact", "force_body", "stroke_set",
-                                     "stroke_chord")} for j in range(n_legs)]
+                                     "stroke_chord", "bend_chord")} for j in range(n_legs)]
     # the legs on the memory law (symcushion.absorber): their unloaded foot is where the
     # axial element's set leaves it
     memory = [scene.hysteresis == "memory" and leg.axial_state for leg in legs]
@@ -523,7 +524,7 @@ def build_model(scene: Scene) -> StepModel:
             contact = ca.if_else(lk, LOCKED, ca.if_else(stays, ca.if_else(loading1, 1.0,
                                                                           UNLOADING), 0.0))
             b1_active = ca.logic_and(b1_active, ca.logic_not(ca.logic_or(st, locked0[j])))
-        kept = ("stroke_set", "stroke_chord")
+        kept = ("stroke_set", "stroke_chord", "bend_chord")
         new_feet.append(dict(foot=foot_w, contact=contact, force_body=P1,
                              **{f: (r if memory[j] else feet[j])[f] for f in kept}))
         if scene.events in ("branch", "lock") and locates_switch(leg):
@@ -557,7 +558,8 @@ def build_model(scene: Scene) -> StepModel:
     x_next = xl.pack(position=pos1, velocity=vel1, attitude=quat1, angular_velocity=omega1,
                      **{f: [foot[f] for foot in new_feet] for f in ("foot", "contact",
                                                                     "force_body", "stroke_set",
-                                                                    "stroke_chord")})
+                                                                    "stroke_chord",
+                                                                    "bend_chord")})
     y = yl.pack(acceleration=acc1, **{f.name: [o[f.name] for o in outputs]
                                        for f in yl.leg_fields})
     step = ca.Function("touchdown_step", [X, p, h], [x_next, y], ["x", "p", "dt"],

@@ -390,3 +390,58 @@ def test_the_bodys_energy_loss_is_what_the_legs_took_at_second_order():
     totals = traj.info["energy"]
     assert set(totals) == {"leg0", "leg1", "leg2"}
     assert totals["leg1"]["axial_J"] > 0 and totals["leg1"]["friction_J"] >= 0
+
+
+# -- dampers on the hinge springs ----------------------------------------------
+def _liftoffs(data, dt=1e-3, until=0.5):
+    """Per leg: how often the foot leaves the ground before ``until`` (s)."""
+    scene = scene_from_dict(data).with_(dt=dt, duration=until)
+    model = build_model(scene)
+    X, _ = model.rollout(scene.steps)(initial_state(scene), model.default_p, dt)
+    contact = state_layout(len(scene.legs)).legs(np.asarray(X), "contact") > 0.5
+    return np.sum(np.diff(contact.astype(int), axis=1) < 0, axis=1)
+
+
+def test_hinge_dampers_keep_a_sliding_damped_foot_on_the_ground():
+    """Behind an axial damper alone the massless foot has no consistent slip near the
+    cone's edge and hops while the lander slides; damping the hinge springs with the
+    same time constant keeps the foot's step stiffness shaped like its elastic one, and
+    the foot slides on the ground (docs/absorbers.md, "Dampers on every element")."""
+    data = read_toml(STUDIES / "lander_damped.toml")
+    # leg 0 points downhill and slides; the uphill legs rock off the ground and back,
+    # which is the body's motion: as often at half the step
+    damped = _liftoffs(data)
+    assert damped[0] <= 1, damped
+    np.testing.assert_array_equal(damped, _liftoffs(data, dt=5e-4))
+    for name in ("M_beta", "M_gamma"):
+        del data["legs"][name]["damping"]
+    assert _liftoffs(data)[0] >= 10, _liftoffs(data)
+
+
+def test_a_hinge_damper_adds_its_moment_over_the_strut_length():
+    """M_β + c_β·β′ and M_γ + c_γ·γ′ enter (2.1) like the springs' moments: the force
+    differs from the undamped one by c·rate/L along e_β and e_γ (with M_γ's sign)."""
+    from symcushion.strut import HingedStrut
+    kw = dict(hinge=(0, 0, 0), e0=(0.3, 0, -1), en=(-0.4, 0.1, -1), length=0.8,
+              S=Crushable(**HONEYCOMB))
+    damped = HingedStrut(M_beta=Linear(2e4, damping=70.0), M_gamma=Linear(3e4, damping=90.0),
+                         **kw)
+    plain = HingedStrut(M_beta=Linear(2e4), M_gamma=Linear(3e4), **kw)
+    r = damped.rest_foot + np.array([0.01, -0.02, 0.015])
+    gain, offset = 1500.0, np.array([0.0, 0.4, -0.7])
+    x = np.asarray(damped.memory_functions()["strut_deflections"](r)).ravel()
+    rate = gain * x + offset
+    P = lambda leg: np.asarray(leg.memory_functions()["strut_force_memory"](
+        r, 0.0, [], gain, offset)).ravel()
+    geo = damped.functions()["strut_geometry"].call(dict(r=r))
+    L, e_b, e_g = (np.asarray(geo[k]).ravel() for k in ("L", "e_beta", "e_gamma"))
+    expected = (70.0 * rate[1] * e_b - damped.sigma * 90.0 * rate[2] * e_g) / L
+    np.testing.assert_allclose(P(damped) - P(plain), expected, rtol=1e-12, atol=1e-9)
+
+
+def test_hinge_dampers_need_the_memory_law():
+    data = read_toml(STUDIES / "lander_damped.toml")
+    data["scene"]["hysteresis"] = "sign"
+    del data["legs"]["S"]["damping"]
+    with pytest.raises(ValueError, match="`M_beta` has a damper.*hysteresis = 'memory'"):
+        scene_from_dict(data)
