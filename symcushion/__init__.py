@@ -8,7 +8,7 @@ modules behind it). ``symcushion.simulate`` is the function
 still reads the compatibility module of the same name.
 """
 from . import envelope, optimise
-from .characteristics import Crushable, Curve, Linear, PiecewiseLinear
+from .characteristics import Crushable, Curve, Linear, PiecewiseLinear, TwoSided
 from .contact import METHODS, contact_step, solve_contact
 from .driver import Trajectory, save, simulate
 from .layout import MODES, output_columns, state_columns
@@ -16,10 +16,12 @@ from .measures import measures_function
 from .obstacles import ImplicitSurface, Plane, Sphere, Terrain
 from .scene import Body, Scene, load_scene, scene_from_dict, symmetric_legs
 from .strut import HingedStrut
+from .tripod import InvertedTripod
 from .stability import stable_dt
 from .touchdown import StepModel, build_model, equilibrium_state, initial_state
 
-__all__ = ["Crushable", "Curve", "Linear", "PiecewiseLinear", "HingedStrut",
+__all__ = ["Crushable", "Curve", "Linear", "PiecewiseLinear", "TwoSided", "HingedStrut",
+           "InvertedTripod",
            "METHODS", "contact_step", "solve_contact",
            "Plane", "Sphere", "ImplicitSurface", "Terrain",
            "Body", "Scene", "load_scene", "scene_from_dict", "symmetric_legs",

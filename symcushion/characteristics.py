@@ -40,6 +40,7 @@ __all__ = [
     "ZERO_DEFLECTION",
     "STOP_STIFFNESS_RATIO",
     "GasSpring",
+    "TwoSided",
 ]
 
 #: Default smoothing width of a knot, in units of the deflection (m or rad).
@@ -597,3 +598,95 @@ class GasSpring(Curve):
 #: Smallest gas volume a :class:`GasSpring` keeps, as a fraction of V₀: the
 #: force there is 1000ⁿ times the preload, far past any stroke a strut uses.
 MIN_GAS_FRACTION = 1e-3
+
+
+class TwoSided(Curve):
+    """An element that resists compression and tension with two different curves.
+
+    The secondary struts of an inverted tripod crush in compression and in
+    tension, at different forces. Each side is given as the curve it follows
+    *in compression* (x < 0), so a crushable honeycomb serves for either; the
+    tension side is its mirror image::
+
+        f(x) = compression(x)          for x < 0
+        f(x) = −tension(−x)            for x ≥ 0
+
+    Both sides must pass through zero force at zero deflection (no preload),
+    so f is continuous; its slope may jump at x = 0 (exact curves take the
+    tension side's slope there). With ``smooth=True`` the switch is rounded
+    over ``kink_width`` like any knot, and both sides are rounded too.
+
+    Parameters
+    ----------
+    compression : Curve
+        Resistance for x < 0 (N vs m), e.g. ``Crushable(2e6, 8e3)``. A plain
+        curve: no unloading branch, end stop or damper of its own (give those
+        to the TwoSided curve).
+    tension : Curve
+        Resistance in tension, written as the curve it would follow in
+        compression: ``Crushable(2e6, 5e3)`` crushes at 5 kN of tension.
+    **options
+        As for :class:`Curve` (``unloading``, ``smooth``, ``tunable`` ...).
+        Parameters are named ``compression.*`` then ``tension.*``.
+    """
+
+    def __init__(self, compression: Curve, tension: Curve, **options):
+        super().__init__(**options)
+        sides = dict(compression=compression, tension=tension)
+        for name, side in sides.items():
+            _check_side(name, side)
+            if self.smooth and not side.smooth:
+                side = copy.copy(side)
+                side.smooth, side.kink_width = True, self.kink_width
+            sides[name] = side
+        self.compression, self.tension = sides["compression"], sides["tension"]
+        self._n_compression = len(self.compression._branch.names)
+        self._branch = _Branch(
+            tuple("compression." + n for n in self.compression._branch.names)
+            + tuple("tension." + n for n in self.tension._branch.names),
+            self.compression._branch.values + self.tension._branch.values)
+
+    def _sides(self, x, theta):
+        m = self._n_compression
+        return theta[:m], theta[m:]
+
+    def _loading(self, x, theta):
+        th_c, th_t = self._sides(x, theta)
+        if self.smooth:       # each side sees only its own half-line, rounded at 0
+            x_c, x_t = -_ramp(-x, self.kink_width), _ramp(x, self.kink_width)
+            return self.compression._loading(x_c, th_c) - self.tension._loading(-x_t, th_t)
+        return ca.if_else(x < 0, self.compression._loading(x, th_c),
+                          -self.tension._loading(-x, th_t))
+
+    def _loading_slope(self, x, theta):
+        th_c, th_t = self._sides(x, theta)
+        if self.smooth:
+            w = self.kink_width
+            x_c, x_t = -_ramp(-x, w), _ramp(x, w)
+            return (self.compression._loading_slope(x_c, th_c) * _ramp_slope(-x, w)
+                    + self.tension._loading_slope(-x_t, th_t) * _ramp_slope(x, w))
+        return ca.if_else(x < 0, self.compression._loading_slope(x, th_c),
+                          self.tension._loading_slope(-x, th_t))
+
+    def _loading_zero(self, theta):
+        return 0 * theta[0]                     # both sides pass through zero
+
+
+#: Largest force at zero deflection (N or N·m) a side of a :class:`TwoSided`
+#: curve may have: the sides must meet at zero force; 1e-9 allows round-off
+#: of parameters given as sums or products without admitting a real preload.
+TWO_SIDED_ZERO_FORCE = 1e-9
+
+
+def _check_side(name, side):
+    """A side of a TwoSided curve: a plain curve through f(0) = 0."""
+    if not isinstance(side, Curve):
+        raise TypeError(f"`{name}` must be a Curve such as Crushable(2e6, 8e3), got {side!r}.")
+    if side.unloading is not None or side.stroke_limit is not None or side.has_damper:
+        raise ValueError(f"`{name}` must be a plain curve, got {side!r} with an unloading "
+                         "branch, end stop or damper; give those options to TwoSided itself.")
+    th_load, _ = side._split(None)
+    f0 = float(ca.evalf(side._loading(0.0, th_load)))
+    if abs(f0) > TWO_SIDED_ZERO_FORCE:
+        raise ValueError(f"`{name}` must give zero force at zero deflection, got f(0) = "
+                         f"{f0:g}; remove its preload (the sides of TwoSided meet at zero).")

@@ -508,3 +508,58 @@ def test_zero_deflection_loads_whatever_the_sign_of_the_rate():
     fn = ca.Function("s", [xs, rs], [curve.slope(xs, rs)])
     assert float(fn(1.1e-16, -1.0)) == pytest.approx(loading, rel=1e-12)
     assert float(fn(-1e-3, 1.0)) == pytest.approx(unloading, rel=1e-12)
+
+
+# ---------------------------------------------------------------------------
+# TwoSided: a compression curve and a mirrored tension curve
+# ---------------------------------------------------------------------------
+
+def _two_sided(**options):
+    from symcushion.characteristics import TwoSided
+    return TwoSided(Crushable(2e6, 8e3, 1e4), Crushable(1e6, 5e3, 2e3), **options)
+
+
+def test_two_sided_follows_each_side_and_mirrors_tension():
+    curve = _two_sided()
+    comp, tens = Crushable(2e6, 8e3, 1e4), Crushable(1e6, 5e3, 2e3)
+    for x in (-0.2, -0.01, -1e-3, -1e-5):
+        assert curve.force(x) == pytest.approx(comp.force(x), rel=1e-14)
+        assert curve.slope(x) == pytest.approx(comp.slope(x), rel=1e-14)
+    for x in (1e-5, 1e-3, 0.01, 0.2):
+        assert curve.force(x) == pytest.approx(-tens.force(-x), rel=1e-14)
+        assert curve.slope(x) == pytest.approx(tens.slope(-x), rel=1e-14)
+    assert curve.force(0.0) == 0.0
+    assert curve.slope(0.0) == 1e6                    # the tension side's, as documented
+    # crushes at 8 kN in compression and 5 kN in tension
+    assert curve.force(-0.05) == pytest.approx(-8e3 - 1e4 * (0.05 - 4e-3), rel=1e-13)
+    assert curve.force(0.05) == pytest.approx(5e3 + 2e3 * (0.05 - 5e-3), rel=1e-13)
+    assert curve.param_names == ("compression.k", "compression.crush_force",
+                                 "compression.plateau_slope", "tension.k",
+                                 "tension.crush_force", "tension.plateau_slope")
+
+
+@pytest.mark.parametrize("smooth", [False, True], ids=["exact", "smooth"])
+def test_two_sided_slope_equals_jacobian_and_differences(smooth):
+    curve = _two_sided(smooth=smooth, unloading=Linear(3e4))
+    fn = _jacobian_function(curve)
+    h = 1e-7
+    for x in (-0.03, -2e-3, -3e-4, 3e-4, 2e-3, 0.03):     # away from the knots ±4, ±5 mm
+        for rate in (1.0, -1.0):
+            jac, slope = (float(v) for v in fn(x, rate))
+            assert slope == pytest.approx(jac, rel=RTOL_SAME)
+            fd = (curve.force(x + h, rate) - curve.force(x - h, rate)) / (2 * h)
+            assert slope == pytest.approx(fd, rel=RTOL_FD)
+
+
+def test_two_sided_theta_and_validation():
+    from symcushion.characteristics import TwoSided
+    curve = _two_sided()
+    theta = curve.param_values.copy()
+    theta[4] = 7e3                                            # tension crush force
+    assert curve.force(0.05, theta=theta) == pytest.approx(7e3 + 2e3 * (0.05 - 7e-3))
+    with pytest.raises(ValueError, match="`tension`.*zero force.*preload"):
+        TwoSided(Linear(1e5), Linear(1e5, preload=10.0))
+    with pytest.raises(ValueError, match="`compression` must be a plain curve"):
+        TwoSided(Linear(1e5, unloading=Linear(1e3)), Linear(1e5))
+    with pytest.raises(TypeError, match="`tension` must be a Curve"):
+        TwoSided(Linear(1e5), 1e5)

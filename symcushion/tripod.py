@@ -1,0 +1,406 @@
+"""The inverted-tripod (cantilever) landing leg: its geometry, foot force and stiffness.
+
+The gear of Apollo LM, Surveyor and Chang'e-3: a primary strut on a
+spherical joint at the hardpoint h₁ runs to the foot r; its outer cylinder,
+of fixed length ℓ_o, carries at Q = h₁ + ℓ_o e_S the pin of two secondary
+struts from the hardpoints h₂, h₃. With L = |r − h₁|, e_S = (r − h₁)/L,
+l_k = |Q − h_k| and u_k = (Q − h_k)/l_k, the generalised deflections are
+
+    q = (δ_S, δ₂, δ₃) = (L − L₀, l₂ − l₂₀, l₃ − l₃₀)
+
+(extension positive, compression negative, as δ_S of ``symcushion.strut``),
+each element resists with its curve f_i(q_i) and, by virtual work, the force
+on the foot *from the obstacle* that holds it at r (the paper's sign, as in
+(2.1)) is
+
+    P = Σᵢ f_i(q_i) ∇_r q_i = J(r)ᵀ f,          J = ∂q/∂r            (T1)
+
+the equilibrium of the massless primary about h₁ (docs/tripod.md). J comes
+from ``casadi.jacobian`` and D_p = ∂P/∂r from another, with the
+loading/unloading branches held as ``HingedStrut`` holds them. An element's
+branch is selected by the sign of q_i·q̇_i with q̇ = J v (v: the foot's
+velocity relative to the body).
+
+Leg-scheme interface. A leg scheme is a class with ``param_names``,
+``param_values``, ``rest_foot``, ``length``, ``hinge``, ``elements`` and
+``functions()``, whose dict holds at least ``strut_geometry(r) -> (L,
+delta_S, e_S, ...)``, ``strut_force(r, v, p) -> P`` and ``strut_stiffness(r,
+v, p) -> Dp``. :class:`InvertedTripod` provides those three under the
+``strut_*`` names (the second output of ``strut_geometry`` is δ_S, as for the
+strut) besides its own ``tripod_*`` Functions built from the same
+expressions. It has no memory law (``axial_state`` is False).
+
+This module owns the tripod's geometry and the Functions built on it. It
+knows nothing of contact, of the body's motion or of scenes, and it must not
+import them; the geometry functions take the hardpoints and lengths as
+arguments so that they may become symbols.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from .characteristics import Curve
+from .validation import real, vector
+
+__all__ = ["InvertedTripod", "SINGULAR_ANGLE", "ELEMENTS", "tripod_geometry_expr",
+           "tripod_rest_lengths"]
+
+#: Smallest angle (rad) allowed at the rest pose between the lines whose
+#: alignment makes the tripod a mechanism: u₂ ∥ u₃, u_k ∥ e_S, and the plane
+#: of the two secondaries containing e_S (then their projections ⊥ e_S are
+#: parallel and the foot has a direction with no stiffness but the curves'
+#: preload). 5° keeps the smallest lateral stiffness above sin²5° ≈ 0.8 % of
+#: the secondaries' scale; real gear is designed near 30°-90°.
+SINGULAR_ANGLE = np.deg2rad(5.0)
+
+#: Element names, in the order of q, f and ``p``.
+ELEMENTS = ("primary", "secondary2", "secondary3")
+
+#: A secondary shorter than this fraction of the primary's rest length counts
+#: as of zero length: its direction u_k is then round-off.
+ZERO_LENGTH = 1e-9
+
+
+def tripod_geometry_expr(r, h1, h2, h3, outer_length):
+    """Lengths and directions of the tripod's elements at foot position ``r``.
+
+    Parameters
+    ----------
+    r, h1, h2, h3 : casadi.SX, MX or DM, shape (3,)
+        Foot position and hardpoints, body frame (m).
+    outer_length : float or casadi scalar
+        ℓ_o, length of the primary's outer cylinder from h₁ to the pin Q (m).
+
+    Returns
+    -------
+    dict
+        ``L`` (primary length), ``e_S`` (primary axis), ``Q`` (pin),
+        ``l`` (list of the two secondary lengths), ``u`` (their unit vectors
+        from h_k towards Q).
+    """
+    d = r - h1
+    L = ca.norm_2(d)
+    e_S = d / L
+    Q = h1 + outer_length * e_S
+    spans = [Q - h2, Q - h3]
+    lengths = [ca.norm_2(s) for s in spans]
+    units = [s / length for s, length in zip(spans, lengths)]
+    return dict(L=L, e_S=e_S, Q=Q, l=lengths, u=units)
+
+
+def tripod_rest_lengths(foot, h1, h2, h3, outer_length):
+    """Rest lengths (L₀, l₂₀, l₃₀) of the three elements with the foot at ``foot`` (m)."""
+    g = tripod_geometry_expr(foot, h1, h2, h3, outer_length)
+    return ca.vertcat(g["L"], *g["l"])
+
+
+def tripod_deflections(g, rest_lengths):
+    """q = (δ_S, δ₂, δ₃): element lengths minus rest lengths (m), extension positive."""
+    return ca.vertcat(g["L"], *g["l"]) - rest_lengths
+
+
+@dataclass(frozen=True)
+class _Element:
+    name: str            # one of ELEMENTS
+    curve: Curve
+    offset: int          # start of its parameters in p (tunable only)
+
+
+def _angle_from_parallel(a, b):
+    """Angle (rad, 0 to π/2) between the lines of a and b; 0 if either is zero."""
+    cross, dot = np.linalg.norm(np.cross(a, b)), abs(float(a @ b))
+    return float(np.arctan2(cross, dot)) if cross + dot > 0 else 0.0
+
+
+def _numeric_geometry(r, h1, h2, h3, outer_length):
+    """The geometry of :func:`tripod_geometry_expr` in NumPy (for checks)."""
+    d = r - h1
+    L = np.linalg.norm(d)
+    e_S = d / L
+    Q = h1 + outer_length * e_S
+    spans = [Q - h2, Q - h3]
+    return L, e_S, Q, spans
+
+
+class InvertedTripod:
+    """Cantilever inverted-tripod leg: primary strut on h₁, two secondaries to its pin Q.
+
+    Parameters
+    ----------
+    h1, h2, h3 : array_like, shape (3,)
+        Hardpoints of the primary (spherical joint) and of the two
+        secondaries, body frame (m).
+    foot : array_like, shape (3,)
+        Foot position at the unloaded rest pose, body frame (m); sets the
+        rest lengths L₀ = |foot − h₁|, l_k0 = |Q₀ − h_k|.
+    outer_length : float
+        ℓ_o, distance from h₁ to the pin Q along the primary (m), 0 < ℓ_o < L₀.
+    primary, secondary2, secondary3 : Curve
+        Resistance curves of the primary stroke δ_S and of the secondary
+        deflections δ₂, δ₃ (N vs m, extension positive); a
+        :class:`~symcushion.characteristics.TwoSided` curve crushes both ways.
+
+    Examples
+    --------
+    >>> from symcushion.characteristics import Linear
+    >>> leg = InvertedTripod(h1=(2.0, 0, 1.0), h2=(1.9, 1.0, -0.6), h3=(1.9, -1.0, -0.6),
+    ...                      foot=(3.6, 0, -1.4), outer_length=1.9, primary=Linear(2e5),
+    ...                      secondary2=Linear(1e6), secondary3=Linear(1e6))
+    >>> sorted(leg.functions())[:3]
+    ['strut_force', 'strut_geometry', 'strut_stiffness']
+    """
+
+    def __init__(self, h1, h2, h3, foot, outer_length, primary: Curve,
+                 secondary2: Curve, secondary3: Curve):
+        self.h1, self.h2, self.h3 = (vector(n, v, (3,)) for n, v in
+                                     (("h1", h1), ("h2", h2), ("h3", h3)))
+        self.foot = vector("foot", foot, (3,))
+        self.outer_length = real("outer_length", outer_length, positive=True, unit="m")
+        self.length = float(np.linalg.norm(self.foot - self.h1))
+        if not self.length > 0:
+            raise ValueError(f"`foot` = {self.foot.tolist()} is at the hardpoint `h1`: the "
+                             "primary has zero rest length; put the foot away from `h1`.")
+        if not self.outer_length < self.length:
+            raise ValueError(f"`outer_length` = {self.outer_length:g} m must be shorter than "
+                             f"the primary's rest length |foot − h1| = {self.length:g} m; "
+                             "the pin Q lies between `h1` and the foot.")
+        self._check_rest_pose()
+        elements, offset = [], 0
+        for name, curve in zip(ELEMENTS, (primary, secondary2, secondary3)):
+            if not isinstance(curve, Curve):
+                raise TypeError(f"`{name}` must be a characteristic curve such as "
+                                f"Linear(1e5), got {curve!r}.")
+            elements.append(_Element(name, curve, offset))
+            offset += curve.n_params if curve.tunable else 0
+        self.elements = tuple(elements)
+        self.rest_lengths = np.asarray(ca.evalf(tripod_rest_lengths(*self._dm_geometry(
+            ca.DM(self.foot))))).ravel()
+        self._functions = None
+
+    # -- interface shared with HingedStrut ---------------------------------------
+    hinge = property(lambda self: self.h1, doc="The primary's joint h₁ (m).")
+    axial_state = property(lambda self: False, doc="No memory law: always False.")
+    axial_memory = axial_state
+
+    @property
+    def param_names(self) -> tuple[str, ...]:
+        """Names of the entries of ``p`` (tunable curves only), e.g. ``primary.k``."""
+        return tuple(f"{el.name}.{n}" for el in self.elements if el.curve.tunable
+                     for n in el.curve.param_names)
+
+    @property
+    def param_values(self) -> np.ndarray:
+        """Default values of ``p``."""
+        vals = [el.curve.param_values for el in self.elements if el.curve.tunable]
+        return np.concatenate(vals) if vals else np.zeros(0)
+
+    @property
+    def rest_foot(self) -> np.ndarray:
+        """Foot position at the unloaded rest pose (m, body frame)."""
+        return self.foot.copy()
+
+    # -- singular poses ------------------------------------------------------------
+    def pose_angles(self, r) -> dict[str, float]:
+        """Angles (rad, 0 to π/2) from each singular alignment at foot position ``r``.
+
+        Keys: ``secondaries`` (u₂ ∥ u₃), ``secondary2_primary`` and
+        ``secondary3_primary`` (u_k ∥ e_S: the secondary pushes along the
+        primary), ``plane`` (u₂, u₃ and e_S in one plane). A secondary of zero
+        length gives 0 for every angle it enters.
+        """
+        r = vector("r", r, (3,))
+        L, e_S, _, spans = _numeric_geometry(r, self.h1, self.h2, self.h3, self.outer_length)
+        short = [np.linalg.norm(s) <= ZERO_LENGTH * self.length for s in spans]
+        u = [np.zeros(3) if z else s / np.linalg.norm(s) for s, z in zip(spans, short)]
+        across = [uk - (uk @ e_S) * e_S for uk in u]                   # parts ⊥ e_S
+        return dict(secondaries=_angle_from_parallel(u[0], u[1]),
+                    secondary2_primary=_angle_from_parallel(u[0], e_S),
+                    secondary3_primary=_angle_from_parallel(u[1], e_S),
+                    plane=_angle_from_parallel(across[0], across[1]))
+
+    def check_pose(self, r) -> float:
+        """The smallest angle (rad) of :meth:`pose_angles` at foot position ``r``.
+
+        A scene check compares it with :data:`SINGULAR_ANGLE` (or its own
+        bound) to refuse poses a run meets; 0 means singular.
+        """
+        return min(self.pose_angles(r).values())
+
+    def _check_rest_pose(self):
+        _, _, Q, spans = _numeric_geometry(self.foot, self.h1, self.h2, self.h3,
+                                           self.outer_length)
+        for k, span in zip((2, 3), spans):
+            if np.linalg.norm(span) <= ZERO_LENGTH * self.length:
+                raise ValueError(f"`h{k}` = {getattr(self, f'h{k}').tolist()} is at the pin Q = "
+                                 f"{Q.tolist()}: secondary {k} has zero length; move `h{k}` "
+                                 "off the primary or change `outer_length`.")
+        angles, limit = self.pose_angles(self.foot), np.rad2deg(SINGULAR_ANGLE)
+        fixes = dict(
+            secondaries="the two secondaries are collinear; move `h2` or `h3` sideways so "
+                        "that they meet Q from different directions",
+            secondary2_primary="secondary 2 lies along the primary's axis; move `h2` off "
+                               "the primary's line",
+            secondary3_primary="secondary 3 lies along the primary's axis; move `h3` off "
+                               "the primary's line",
+            plane="the secondaries and the primary lie in one plane, so nothing resists "
+                  "the foot across it; move `h2` or `h3` out of that plane")
+        for key, angle in angles.items():
+            if angle < SINGULAR_ANGLE:
+                raise ValueError(f"singular rest pose: {fixes[key]} (angle "
+                                 f"{np.rad2deg(angle):.3g}° < {limit:g}°).")
+
+    # -- symbolic model ---------------------------------------------------------
+    def _dm_geometry(self, r):
+        return (r, ca.DM(self.h1), ca.DM(self.h2), ca.DM(self.h3), self.outer_length)
+
+    def geometry(self, r):
+        """Geometry at foot position ``r`` (CasADi): :func:`tripod_geometry_expr`
+        plus ``q`` (3), ``delta_S`` and ``stroke_secondary`` (2), in m."""
+        g = tripod_geometry_expr(*self._dm_geometry(r))
+        g["q"] = tripod_deflections(g, ca.DM(self.rest_lengths))
+        g["delta_S"], g["stroke_secondary"] = g["q"][0], g["q"][1:]
+        return g
+
+    def _theta(self, el: _Element, p):
+        return p[el.offset:el.offset + el.curve.n_params] if el.curve.tunable else None
+
+    def element_forces(self, r, v, p, r_branch=None):
+        """f = (S, T₂, T₃) (N), each element's curve at its deflection q_i.
+
+        ``r`` and ``r_branch`` (default ``r``) must be CasADi symbols: the rate
+        q̇ = J(r_branch) v and the deflection at ``r_branch`` select the
+        loading or unloading branch.
+        """
+        q = self.geometry(r)["q"]
+        r_branch = r if r_branch is None else r_branch
+        q_branch = self.geometry(r_branch)["q"]
+        rate = ca.jacobian(q_branch, r_branch) @ v
+        return ca.vertcat(*[el.curve.force(q[i], rate[i], self._theta(el, p),
+                                           branch_x=q_branch[i])
+                            for i, el in enumerate(self.elements)])
+
+    def force_expr(self, r, v, p, r_branch=None):
+        """P = J(r)ᵀ f (N), (T1): virtual work of the three elements.
+
+        ``r`` must be a CasADi symbol (J = ∂q/∂r is taken by ``casadi.jacobian``).
+        """
+        J = ca.jacobian(self.geometry(r)["q"], r)
+        return J.T @ self.element_forces(r, v, p, r_branch)            # (T1)
+
+    # -- Functions --------------------------------------------------------------
+    def functions(self) -> dict[str, ca.Function]:
+        """The named CasADi Functions of this leg (built once, cached).
+
+        Returns
+        -------
+        dict
+            ``tripod_geometry(r) -> L, delta_S, e_S, Q, stroke_secondary``,
+            ``tripod_element_forces(r, v, p) -> S, T``,
+            ``tripod_force(r, v, p) -> P`` (T1) and
+            ``tripod_stiffness(r, v, p) -> Dp`` (``casadi.jacobian`` of P with
+            the branches held), and the leg-scheme interface
+            ``strut_geometry``, ``strut_force``, ``strut_stiffness``: the same
+            expressions under the strut's names. ``r``: foot position (3, m,
+            body frame); ``v``: foot velocity relative to the body (3, m/s;
+            selects the branches); ``p``: tunable parameters
+            (``param_names``), empty when all curves are numeric.
+
+        Notes
+        -----
+        At r = h₁ or with a secondary of zero length these raw Functions
+        return NaN; :meth:`force` and :meth:`stiffness` check their inputs.
+        """
+        if self._functions is None:
+            self._functions = self._build_functions()
+        return self._functions
+
+    def _build_functions(self):
+        r, v = ca.SX.sym("r", 3), ca.SX.sym("v", 3)
+        p = ca.SX.sym("p", len(self.param_names))
+        r_branch = ca.SX.sym("r_branch", 3)
+        g = self.geometry(r)
+        f = self.element_forces(r, v, p)
+        P = self.force_expr(r, v, p)
+        # ∂P/∂r with the branch test frozen at r_branch, as HingedStrut does:
+        # the smooth blend weight's derivative is not a stiffness.
+        Dp = ca.substitute(ca.jacobian(self.force_expr(r, v, p, r_branch), r), r_branch, r)
+        geo_out = [g["L"], g["delta_S"], g["e_S"], g["Q"], g["stroke_secondary"]]
+        geo_names = ["L", "delta_S", "e_S", "Q", "stroke_secondary"]
+        names_in = ["r", "v", "p"]
+        out = {}
+        for prefix in ("tripod", "strut"):
+            out[f"{prefix}_geometry"] = ca.Function(f"{prefix}_geometry", [r], geo_out,
+                                                    ["r"], geo_names)
+            out[f"{prefix}_force"] = ca.Function(f"{prefix}_force", [r, v, p], [P],
+                                                 names_in, ["P"])
+            out[f"{prefix}_stiffness"] = ca.Function(f"{prefix}_stiffness", [r, v, p], [Dp],
+                                                     names_in, ["Dp"])
+        out["tripod_element_forces"] = ca.Function("tripod_element_forces", [r, v, p],
+                                                   [f[0], f[1:]], names_in, ["S", "T"])
+        return out
+
+    # -- numeric convenience ------------------------------------------------------
+    def _check_r(self, r):
+        r = vector("r", r, (3,))
+        if np.linalg.norm(r - self.h1) < ZERO_LENGTH * self.length:
+            raise ValueError(f"`r` = {r.tolist()} is at the hardpoint h1 {self.h1.tolist()}: "
+                             "the primary's axis is undefined; give a foot position away "
+                             "from it.")
+        return r
+
+    def _p(self, p):
+        if p is None:
+            return self.param_values
+        p = np.asarray(p, dtype=float).ravel()
+        if p.size != len(self.param_names):
+            raise ValueError(f"`p` must have {len(self.param_names)} entries "
+                             f"{self.param_names}, got {p.size}.")
+        return p
+
+    def _call(self, name, r, v, p):
+        out = self.functions()[name](self._check_r(r), vector("v", v, (3,)), self._p(p))
+        return np.asarray(out, dtype=float)
+
+    def force(self, r, v=(0.0, 0.0, 0.0), p=None) -> np.ndarray:
+        """P(r) of (T1) as a NumPy array, shape (3,) (N); validates its inputs."""
+        return self._call("tripod_force", r, v, p).ravel()
+
+    def stiffness(self, r, v=(0.0, 0.0, 0.0), p=None) -> np.ndarray:
+        """D_p = ∂P/∂r by AD, shape (3, 3) (N/m)."""
+        return self._call("tripod_stiffness", r, v, p)
+
+    def strokes(self, r) -> np.ndarray:
+        """q = (δ_S, δ₂, δ₃) at foot position ``r``, shape (3,) (m)."""
+        geo = self.functions()["tripod_geometry"].call(dict(r=self._check_r(r)))
+        return np.concatenate([np.asarray(geo["delta_S"]).ravel(),
+                               np.asarray(geo["stroke_secondary"]).ravel()])
+
+    def forces(self, r, v=(0.0, 0.0, 0.0), p=None) -> np.ndarray:
+        """f = (S, T₂, T₃) at foot position ``r``, shape (3,) (N)."""
+        fn = self.functions()["tripod_element_forces"]
+        out = fn.call(dict(r=self._check_r(r), v=vector("v", v, (3,)), p=self._p(p)))
+        return np.concatenate([np.asarray(out["S"]).ravel(), np.asarray(out["T"]).ravel()])
+
+    def rest_stiffness_closed_form(self) -> np.ndarray:
+        """D_p at the unloaded rest pose by hand, in NumPy, shape (3, 3) (N/m).
+
+        D_p = k_P e_S e_Sᵀ + Σ_k k_k g_k g_kᵀ, g_k = (ℓ_o/L₀)(I − e_S e_Sᵀ) u_k
+        (∂δ_k/∂r, docs/tripod.md), k_i the loading slopes at zero deflection.
+        The geometric terms f_i ∇²q_i vanish because every f_i(0) is zero;
+        a curve with a preload is refused.
+        """
+        L, e_S, _, spans = _numeric_geometry(self.foot, self.h1, self.h2, self.h3,
+                                             self.outer_length)
+        across = np.eye(3) - np.outer(e_S, e_S)
+        grads = [e_S] + [self.outer_length / L * across @ (s / np.linalg.norm(s))
+                         for s in spans]
+        out = np.zeros((3, 3))
+        for el, grad in zip(self.elements, grads):
+            if abs(el.curve.force(0.0)) > 0:
+                raise ValueError(f"`{el.name}` carries {el.curve.force(0.0):g} N at rest: the "
+                                 "closed form holds at zero load only; use `stiffness`.")
+            out += el.curve.slope(0.0) * np.outer(grad, grad)
+        return out
