@@ -53,7 +53,7 @@ from __future__ import annotations
 
 import casadi as ca
 
-from .characteristics import Curve
+from .characteristics import Crushable, Curve, TwoSided
 
 __all__ = ["elastic_stiffness", "band", "memory_force", "band_force", "next_set",
            "free_deflection", "set_on_loading", "damper_force", "end_rate", "relaxed_deflection",
@@ -74,9 +74,27 @@ def elastic_stiffness(curve: Curve, theta=None):
     return curve._loading_slope(0.0, th_load)
 
 
+def _crush_line(side: Curve, x, theta):
+    """The crushing line of a crushable side, extended over every ``x`` (None for a
+    side that does not crush)."""
+    if not isinstance(side, Crushable):
+        return None
+    k, f_c, k_p = theta[0], theta[1], theta[2]
+    return -f_c + k_p * (x + f_c / k)
+
+
 def band(curve: Curve, x, theta=None):
-    """(lo, hi) of (A1) at deflection ``x``; hi is None where there is no upper bound."""
+    """(lo, hi) of (A1) at deflection ``x``; None where there is no bound.
+
+    A two-sided element (:class:`~symcushion.characteristics.TwoSided`) is bounded
+    by its sides' crushing lines: below by the compression side's, above by the
+    mirror of the tension side's; a side that does not crush leaves that side open.
+    """
     th_load, th_unload = curve._split(theta)
+    if isinstance(curve, TwoSided) and curve.unloading is None:
+        th_c, th_t = curve._sides(x, th_load)
+        hi = _crush_line(curve.tension, -x, th_t)
+        return _crush_line(curve.compression, x, th_c), None if hi is None else -hi
     f_load = curve._loading(x, th_load)
     if curve.unloading is None:
         return f_load, None
@@ -101,11 +119,11 @@ def band_force(curve: Curve, x, s, theta=None, x_regime=None):
     lo, hi = band(curve, x, theta)
     trial = k_e * (x - s)                                            # (A1)
     if x_regime is None:
-        f = ca.fmax(trial, lo)
+        f = trial if lo is None else ca.fmax(trial, lo)
         return f if hi is None else ca.fmin(f, hi)
     lo_r, hi_r = band(curve, x_regime, theta)
     trial_r = k_e * (x_regime - s)
-    f = ca.if_else(trial_r < lo_r, lo, trial)
+    f = trial if lo is None else ca.if_else(trial_r < lo_r, lo, trial)
     if hi is not None:
         f = ca.if_else(trial_r > hi_r, hi, f)
     return f
@@ -119,6 +137,8 @@ def next_set(curve: Curve, x, s, theta=None):
 def free_deflection(curve: Curve, s, theta=None):
     """x₀(s): where a free element with set ``s`` carries no force."""
     z_load = curve.loading_zero(theta)
+    if isinstance(curve, TwoSided) and curve.unloading is None:
+        return s                                # the elastic line's zero, either way
     if curve.unloading is None:
         return ca.fmin(s, z_load)
     _, th_unload = curve._split(theta)
@@ -130,6 +150,23 @@ def set_on_loading(curve: Curve, x, theta=None):
     """The set of an element that reached ``x`` along its loading curve."""
     th_load, _ = curve._split(theta)
     return x - curve._loading(x, th_load) / elastic_stiffness(curve, theta)
+
+
+def element_force(curve: Curve, x, s, theta=None, x_regime=None, rate=None):
+    """An element's force on the memory law: (A1) with its end stop if it keeps a set,
+    else its loading curve; plus its dampers at the deflection rate ``rate`` (A3)."""
+    if curve.has_memory:
+        f = memory_force(curve, x, s, theta, x_regime)
+    else:
+        f = curve.force(x, 0.0, theta)
+    if curve.has_damper and rate is not None:
+        f = f + damper_force(curve, rate)
+    return f
+
+
+def element_next_set(curve: Curve, x, s, theta=None):
+    """s⁺ of (A2) for an element that keeps a set; ``s`` unchanged for one that does not."""
+    return next_set(curve, x, s, theta) if curve.has_memory else s
 
 
 def damper_force(curve: Curve, rate):

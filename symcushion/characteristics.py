@@ -198,7 +198,10 @@ class Curve:
     def has_memory(self) -> bool:
         """True if the element keeps a set under the memory law (``symcushion.absorber``):
         it has an unloading curve, or it crushes."""
-        return self.unloading is not None or isinstance(self, Crushable)
+        return (self.unloading is not None or isinstance(self, Crushable)
+                or (isinstance(self, TwoSided)
+                    and any(isinstance(side, Crushable)
+                            for side in (self.compression, self.tension))))
 
     def loading_zero(self, theta=None):
         """The deflection where the loading curve's force is zero (m or rad).

@@ -314,7 +314,6 @@ def _sample_surface(k, j, phi, grad, pts, h):
 
 #: Deflection range sampled for the slope check: ± the leg length for the
 #: axial element (m), ± a quarter turn for the hinge elements (rad).
-_RANGES = {"S": 1.0, "M_beta": np.pi / 2, "M_gamma": np.pi / 2}
 _SLOPE_SAMPLES = 81
 
 
@@ -354,7 +353,7 @@ def _check_curves(scene):
     out = []
     for j, leg in enumerate(scene.legs):
         for el in leg.elements:
-            extent = _RANGES[el.name] * (leg.length if el.name == "S" else 1.0)
+            extent = leg.element_extent(el.name)
             xs = np.linspace(-extent, extent, _SLOPE_SAMPLES)
             branches = [("loading", el.curve)]
             if el.curve.unloading is not None:

@@ -58,13 +58,11 @@ class LegInput:
     its Functions ``fns`` and curve parameters ``p_leg``, its unloaded foot
     ``rest`` (body frame), its state entries ``foot`` (``foot``, ``contact``,
     ``force_body``) and its foot at the start ``rho0`` (body frame); under
-    the memory law (``symcushion.absorber``) its axial set at the start
-    ``stroke_set`` and the mean stroke rate of the previous step
-    ``stroke_chord`` and of the hinge angles ``bend_chord`` (else None), with
-    ``fns`` holding the strut's
-    ``memory_functions`` too; then ``rest`` is the free foot at the end of the
-    step and ``rest_start`` the free foot at its start (a damped foot relaxes
-    over the step)."""
+    the memory law (``symcushion.absorber``) its elements' sets at the start
+    ``sets`` (3) and their mean rates over the previous step ``chords`` (3)
+    (else None), with ``fns`` holding the leg's ``memory_functions`` too; then
+    ``rest`` is the free foot at the end of the step and ``rest_start`` the
+    free foot at its start (a damped foot relaxes over the step)."""
 
     strut: object
     fns: dict
@@ -72,9 +70,8 @@ class LegInput:
     rest: ca.DM
     foot: dict
     rho0: ca.SX
-    stroke_set: ca.SX | None = None
-    stroke_chord: ca.SX | None = None
-    bend_chord: ca.SX | None = None
+    sets: ca.SX | None = None
+    chords: ca.SX | None = None
     rest_start: ca.SX | None = None
 
 
@@ -123,14 +120,14 @@ class FeetStep:
         n_b = R_e.T @ normal_w
         u0 = rho_s - leg.rest
         v_rel = rate_of(l)
-        if leg.stroke_set is None:
+        if leg.sets is None:
             P0 = fns["strut_force"](rho_s, v_rel, p_leg)
             Dp = fns["strut_stiffness"](rho_s, v_rel, p_leg)
         else:
             rate = self.damper_rate(leg, rho_s)
             P0, Dp = self.memory_linearisation(leg, rho_s, l, rate)
         out = contact_step_call(scene.method, P0, Dp, n_b, l, mu, u0, friction=friction)
-        if scene.tangent_plane == "end" or leg.stroke_set is not None:
+        if scene.tangent_plane == "end" or leg.sets is not None:
             # second pass: the tangent plane at the predicted end point, shifted along
             # its normal so that a sticking foot keeps its world point r_s; on the memory
             # law, the force law linearised there too, in the regime the foot reaches
@@ -141,7 +138,7 @@ class FeetStep:
                 _, normal_w, _ = closest_obstacle(scene.obstacles, r_pred)
                 n_b = R_e.T @ normal_w
                 l = l + n_b * ca.dot(n_b, R_e.T @ (r_pred - r_s))
-            if leg.stroke_set is not None:
+            if leg.sets is not None:
                 P0, Dp = self.memory_linearisation(leg, rho_s, out["delta"], rate)
             out = contact_step_call(scene.method, P0, Dp, n_b, l, mu, u0,
                                     friction=friction)
@@ -156,8 +153,7 @@ class FeetStep:
         the start of the step and the previous step's mean rate."""
         x0 = leg.fns["strut_deflections"](rho_s)               # δ_S, β, γ − γ₀ at the start
         h = self.poses.h
-        chords = ca.vertcat(leg.stroke_chord, leg.bend_chord)
-        return 1.5 / h, -1.5 * x0 / h - 0.5 * chords                    # (A3)
+        return 1.5 / h, -1.5 * x0 / h - 0.5 * leg.chords                # (A3)
 
     @staticmethod
     def memory_linearisation(leg: LegInput, rho_s, d, rate):
@@ -171,7 +167,7 @@ class FeetStep:
         then the law's to round-off whatever regime it enters, and a slipping
         foot's differs by the curvature over the second correction only.
         """
-        fns, s0, p_leg = leg.fns, leg.stroke_set, leg.p_leg
+        fns, s0, p_leg = leg.fns, leg.sets, leg.p_leg
         rho_d = rho_s + d
         Dp = fns["strut_stiffness_memory"](rho_d, s0, p_leg, *rate, rho_d)
         return fns["strut_force_memory"](rho_d, s0, p_leg, *rate) - Dp @ d, Dp
@@ -290,18 +286,19 @@ class FeetStep:
         foot_w = ca.if_else(stays, foot_proj, foot_w)
         rho1 = ca.if_else(stays, P.R1.T @ (foot_w - P.pos1), rho1)
         P1 = ca.if_else(stays, out["P"], ca.DM.zeros(3))
-        stroke_set, chord, bend_chord = leg.stroke_set, leg.stroke_chord, leg.bend_chord
-        if stroke_set is not None:
-            # the end force and set of the memory law at the end foot (A1)-(A3): the
-            # stroke grows only at the loading curve's force, whatever the foot did
+        sets, chords = leg.sets, leg.chords
+        if sets is not None:
+            # the end force and sets of the memory law at the end foot (A1)-(A3): a stroke
+            # grows only at its loading curve's force, whatever the foot did
             fns, rate = leg.fns, self.damper_rate(leg, rho_s)
-            P1 = ca.if_else(stays, fns["strut_force_memory"](rho1, stroke_set, leg.p_leg, *rate),
+            P1 = ca.if_else(stays, fns["strut_force_memory"](rho1, sets, leg.p_leg, *rate),
                             ca.DM.zeros(3))
-            stroke_set = fns["strut_next_set"](rho1, stroke_set, leg.p_leg)
+            sets = fns["strut_next_set"](rho1, sets, leg.p_leg)
             moved = (fns["strut_deflections"](rho1) - fns["strut_deflections"](rho_s)) / h
-            # a free foot's hinge angles return to rest at once: no rate to carry
-            chord, bend_chord = moved[0], ca.if_else(stays, moved[1:], ca.DM.zeros(2))
+            # a free foot's elements that do not relax (a strut's hinge angles) return to
+            # rest at once: no rate to carry
+            chords = ca.if_else(stays, moved, moved * ca.DM(leg.strut.relaxes_free))
         return dict(in_contact=in_contact, active=active, stays=stays, rho_s=rho_s, r_s=r_s,
                     l=l, n_b=n_b, v_rel=v_rel, normal_w=normal_w, out=out, rho1=rho1,
                     foot_w=foot_w, P1=P1, locked=ca.SX(0), split=split, l_whole=l_whole,
-                    stroke_set=stroke_set, stroke_chord=chord, bend_chord=bend_chord)
+                    sets=sets, chords=chords)

@@ -97,7 +97,7 @@ BODY_STATE_FIELDS = (
     Field("attitude", "1", "unit quaternion (w, x, y, z), body → world", _WXYZ),
     Field("angular_velocity", "rad_s", "angular velocity, body axes", _XYZ),
 )
-#: Leg block of the state: 11 entries per leg.
+#: Leg block of the state: 13 entries per leg.
 LEG_STATE_FIELDS = (
     Field("foot", "m", "foot position, world frame (the stored contact point)", _XYZ),
     Field("contact", "1", "1 while the foot is in contact, else 0; with events = 'lock', "
@@ -111,16 +111,20 @@ LEG_STATE_FIELDS = (
     Field("stroke_chord", "m_s", "mean stroke rate of the last step, (x₁ − x₀)/Δt, which "
           "the axial dampers' rate (A3) of the next step reads (0 for a free foot, and "
           "under the printed law)", default=0.0),
-    Field("bend_chord", "rad_s", "mean rates of the hinge angles β and γ over the last "
-          "step, which the hinge dampers' rate (A3) of the next step reads (0 for a free "
-          "foot, and under the printed law)", ("beta", "gamma"), default=0.0),
+    Field("element_set", "1", "sets of the leg's other two elements under the memory law: "
+          "an inverted tripod's secondaries (m); 0 for a hinged strut, whose hinge springs "
+          "keep none", ("2", "3"), default=0.0),
+    Field("element_chord", "1", "mean rates of the leg's other two elements over the last "
+          "step (a strut's hinge angles β, γ in rad/s; a tripod's secondaries in m/s), which "
+          "their dampers' rate (A3) of the next step reads (0 for a free foot, and under the "
+          "printed law)", ("2", "3"), default=0.0),
 )
 #: Body block of the per-step output: 3 entries.
 BODY_OUT_FIELDS = (
     Field("acceleration", "m_s2", "acceleration of the centre of mass at the end of "
           "the step, world frame (gravity included)", _XYZ),
 )
-#: Leg block of the per-step output: 17 entries per leg.
+#: Leg block of the per-step output: 19 entries per leg.
 LEG_OUT_FIELDS = (
     Field("in_contact", "1", "1 if the foot is in contact at the end of the step"),
     Field("mode", "1", "contact mode code, see MODES"),
@@ -130,6 +134,8 @@ LEG_OUT_FIELDS = (
     Field("stroke", "m", "axial stroke δ_S = L − L₀"),
     Field("beta", "rad", "hinge azimuth β"),
     Field("gamma_deflection", "rad", "polar deflection γ − γ₀"),
+    Field("secondary_stroke", "m", "deflections of an inverted-tripod leg's two secondary "
+          "struts, extension positive (0 for a hinged strut)", ("2", "3")),
     Field("work_axial", "J", "work done on the axial element over the step, "
           "½(S₀ + S₁)(δ_S1 − δ_S0), S = P·e_S (its dampers included): what it absorbs and "
           "stores", default=0.0),

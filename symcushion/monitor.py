@@ -168,7 +168,8 @@ class RunMonitor:
         """A leg whose axial element went past its ``stroke_limit``: it bottomed."""
         yl = output_layout(len(self.scene.legs))
         for j, leg in enumerate(self.scene.legs):
-            limit = next((el.curve.stroke_limit for el in leg.elements if el.name == "S"), None)
+            limit = next((el.curve.stroke_limit for el in leg.elements
+                          if el.name == leg.axial_element), None)
             if limit is None or Y.shape[0] != yl.size:
                 continue
             stroke = yl.get(Y, "stroke", j)
@@ -251,10 +252,10 @@ def _energy_supply(scene: Scene, x0) -> float:
         in_contact = x["contact"][j] > 0.5
         rho = R.T @ (x["foot"][j] - x["position"]) if in_contact else leg.rest_foot
         geo = leg.functions()["strut_geometry"](r=rho)
-        deflection = {"S": float(geo["delta_S"]), "M_beta": float(geo["beta"]),
-                      "M_gamma": float(geo["gamma"]) - leg.gamma0}
+        deflection = {k: float(v) for k, v in leg.deflections(geo).items()}
         for el in leg.elements:
-            stroke = leg.length if el.name == "S" else np.pi
+            stroke = (leg.length if el.name == leg.axial_element
+                      else 2 * leg.element_extent(el.name))
             xs = np.linspace(0.0, deflection[el.name], 65)
             forces = np.array([abs(el.curve.force(float(x))) for x in xs])
             supply += float(np.sum(0.5 * (forces[1:] + forces[:-1]) * np.abs(np.diff(xs))))

@@ -18,10 +18,12 @@ from pathlib import Path
 import numpy as np
 
 from .characteristics import (KINK_WIDTH, RATE_WIDTH, Crushable, Curve, GasSpring, Linear,
-                              PiecewiseLinear)
+                              PiecewiseLinear, TwoSided)
 from .contact import METHODS  # re-exported: scenes name their contact step
 from .obstacles import ImplicitSurface, Obstacle, Plane, Sphere, Terrain
 from .strut import HingedStrut
+from .tripod import ELEMENTS as TRIPOD_ELEMENTS
+from .tripod import InvertedTripod
 from .formula import Formula, FormulaError
 from .validation import (INVALID, Problems, SceneError, Table, choice, direction, integer,
                          real, show, vector)
@@ -64,6 +66,12 @@ EVENT_RULES = ("none", "branch", "lock")
 #: ``symcushion.absorber`` (a set per absorber in the state, a continuous force,
 #: crushing only at the loading curve's force; docs/absorbers.md).
 HYSTERESIS_LAWS = ("sign", "memory")
+
+#: Leg schemes: ``"strut"``, the strut on a spherical hinge of (2.1)
+#: (``symcushion.strut``); ``"tripod"``, the inverted tripod of flown landers
+#: (``symcushion.tripod``, docs/tripod.md).
+SCHEMES = ("strut", "tripod")
+LEG_SCHEMES = (HingedStrut, InvertedTripod)
 
 
 def _vec(name, value, size=3):
@@ -176,8 +184,9 @@ class Scene:
         if not isinstance(self.body, Body):
             raise TypeError(f"`body` must be a Body, got {type(self.body).__name__}.")
         self.legs = list(self.legs)
-        if not self.legs or not all(isinstance(leg, HingedStrut) for leg in self.legs):
-            raise ValueError("`legs` must be a non-empty list of HingedStrut.")
+        if not self.legs or not all(isinstance(leg, LEG_SCHEMES) for leg in self.legs):
+            raise ValueError("`legs` must be a non-empty list of legs (HingedStrut or "
+                             "InvertedTripod).")
         self.obstacles = list(self.obstacles)
         if not self.obstacles or not all(isinstance(o, Obstacle) for o in self.obstacles):
             raise ValueError("`obstacles` must be a non-empty list of Obstacle.")
@@ -195,6 +204,7 @@ class Scene:
                              "slip = 'backward'.")
         self.hysteresis = choice("hysteresis", self.hysteresis, HYSTERESIS_LAWS)
         self._check_dampers()
+        self._check_tripods()
         if self.hysteresis == "memory":
             self._check_memory()
         self.dt = _positive("dt", self.dt, "s")
@@ -211,6 +221,14 @@ class Scene:
                     raise ValueError(f"leg {j}: `{el.name}` has a damper, which the printed "
                                      "law P(δ, sign δ′) does not have; set hysteresis = "
                                      "'memory'.")
+
+    def _check_tripods(self):
+        """An inverted tripod takes no event rule: those locate a strut's switches."""
+        tripods = [j for j, leg in enumerate(self.legs) if isinstance(leg, InvertedTripod)]
+        if tripods and self.events != "none":
+            raise ValueError(f"legs {tripods} are inverted tripods; `events` = "
+                             f"{self.events!r} locates the switches of a strut's axial element "
+                             "only. Set events = 'none'.")
 
     def _check_memory(self):
         """The memory law's conditions: no event rule, no hinge spring with memory."""
@@ -275,12 +293,37 @@ def symmetric_legs(count: int, radius: float, height: float, length: float, e0_l
 #: ``symcushion.validation``).
 _Table = Table
 
-_CURVES = ("linear", "piecewise", "crushable", "gas")
+_CURVES = ("linear", "piecewise", "crushable", "gas", "two_sided")
 #: Every key of an element table, for "did you mean" on a misspelt one.
 _CURVE_KEYS = ("type", "smooth", "tunable", "unloading", "stiffness", "preload", "x", "f",
                "crush_force", "plateau_slope", "kink_width", "rate_width",
                "elastic_stiffness", "damping", "orifice", "stroke_limit", "stop_stiffness",
-               "pressure", "area", "volume", "exponent")
+               "pressure", "area", "volume", "exponent", "compression", "tension")
+
+
+def symmetric_tripods(count: int, h1, h2, h3, foot, outer_length: float, primary: Curve,
+                      secondary2: Curve, secondary3: Curve, azimuth0: float = 0.0) -> list:
+    """``count`` identical inverted-tripod legs evenly spaced about the body's z axis.
+
+    Leg 0's hardpoints ``h1``, ``h2``, ``h3`` and rest ``foot`` are given in
+    body axes at azimuth 0 (its plane of symmetry is usually x–z); leg i is
+    leg 0 turned about z by φ_i = azimuth0 + 2πi/count.
+
+    Returns
+    -------
+    list of InvertedTripod
+    """
+    count = integer("count", count, minimum=1)
+    points = [np.asarray(v, dtype=float) for v in (h1, h2, h3, foot)]
+    legs = []
+    for i in range(count):
+        phi = azimuth0 + 2 * np.pi * i / count
+        c, s = np.cos(phi), np.sin(phi)
+        turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        legs.append(InvertedTripod(*(turn @ v for v in points), outer_length=outer_length,
+                                   primary=primary, secondary2=secondary2,
+                                   secondary3=secondary3))
+    return legs
 
 
 def _build(t: Table, build, *args, **kwargs):
@@ -334,6 +377,10 @@ def _curve(table, allow_unloading=True) -> Curve:
                                   table.get("area", positive=True),
                                   table.get("volume", positive=True),
                                   table.get("exponent", 1.3, positive=True))
+    elif kind == "two_sided":   # each side written as the curve it follows in compression
+        build, args = TwoSided, tuple(_curve(table.get(side, kind="table"),
+                                             allow_unloading=False)
+                                      for side in ("compression", "tension"))
     else:                       # a bad type, already reported: its fields are not unknown
         build, args = None, ()
         table.used.update(_CURVE_KEYS)
@@ -351,7 +398,7 @@ def _elements(table: Table):
     return out
 
 
-_LEGS_KEYS = ("count", "radius", "height", "length", "e0", "en", "azimuth0", "axial_ratio",
+_LEGS_KEYS = ("scheme", "count", "radius", "height", "length", "e0", "en", "azimuth0", "axial_ratio",
               "S", "M_beta", "M_gamma")
 
 
@@ -359,7 +406,10 @@ def _legs(top: Table) -> list:
     legs = []
     if top.has("legs"):
         t = top.get("legs", kind="table")
-        if t is not INVALID:
+        if t is not INVALID and t.get("scheme", "strut", kind="string",
+                                      choices=SCHEMES) == "tripod":
+            legs.append(_tripods(t))
+        elif t is not INVALID:
             els = _elements(t)
             if t.has("axial_ratio"):
                 els["axial_ratio"] = t.get("axial_ratio", positive=True)
@@ -372,13 +422,17 @@ def _legs(top: Table) -> list:
     if top.has("leg"):
         tables = top.get("leg", kind="tables")
         for t in ([] if tables is INVALID else tables):
+            if t.get("scheme", "strut", kind="string", choices=SCHEMES) == "tripod":
+                leg = _tripod(t)
+                legs.append(leg if leg is INVALID else [leg])
+                continue
             els = _elements(t)
             if t.has("axial_ratio"):
                 els["axial_ratio"] = t.get("axial_ratio", positive=True)
             args = (t.get("hinge", kind="vector", size=3), t.get("e0", kind="vector", size=3),
                     t.get("en", kind="vector", size=3), t.get("length", positive=True))
-            t.finish(known=("hinge", "e0", "en", "length", "axial_ratio", "S", "M_beta",
-                            "M_gamma"))
+            t.finish(known=("scheme", "hinge", "e0", "en", "length", "axial_ratio", "S",
+                            "M_beta", "M_gamma"))
             leg = _build(t, HingedStrut, *args, **els)
             legs.append(leg if leg is INVALID else [leg])
     top.used.update(("legs", "leg"))
@@ -388,6 +442,31 @@ def _legs(top: Table) -> list:
     if any(group is INVALID for group in legs):
         return INVALID
     return [leg for group in legs for leg in group]
+
+
+def _tripods(t: Table):
+    """A ``[legs]`` table with ``scheme = "tripod"``: a symmetric set of tripods."""
+    curves = {name: _curve(t.get(name, kind="table")) for name in TRIPOD_ELEMENTS}
+    args = (t.get("count", kind="int"),)
+    args += tuple(t.get(k, kind="vector", size=3) for k in ("h1", "h2", "h3", "foot"))
+    args += (t.get("outer_length", positive=True),)
+    azimuth0 = t.get("azimuth0", 0.0)
+    t.finish(known=("scheme", "count", "h1", "h2", "h3", "foot", "outer_length", "azimuth0")
+             + TRIPOD_ELEMENTS)
+    if any(c is INVALID for c in curves.values()):
+        return INVALID
+    return _build(t, symmetric_tripods, *args, azimuth0=azimuth0, **curves)
+
+
+def _tripod(t: Table):
+    """An ``[[leg]]`` table with ``scheme = "tripod"``: an inverted-tripod leg."""
+    curves = {name: _curve(t.get(name, kind="table")) for name in TRIPOD_ELEMENTS}
+    args = tuple(t.get(k, kind="vector", size=3) for k in ("h1", "h2", "h3", "foot"))
+    args += (t.get("outer_length", positive=True),)
+    t.finish(known=("scheme", "h1", "h2", "h3", "foot", "outer_length") + TRIPOD_ELEMENTS)
+    if any(c is INVALID for c in curves.values()):
+        return INVALID
+    return _build(t, InvertedTripod, *args, **curves)
 
 
 _OBSTACLES = ("plane", "sphere", "implicit", "terrain")

@@ -88,6 +88,39 @@ def leg_geometry_expr(r, r_h, e0, en):
     return dict(L=L, e_S=e_S, e_beta=e_beta, e_gamma=e_gamma, beta=beta, gamma=gamma)
 
 
+#: The elements of a hinged strut, in the order of their sets and rates.
+_ELEMENT_ORDER = ("S", "M_beta", "M_gamma")
+
+
+def memory_functions_of(leg) -> dict[str, ca.Function]:
+    """The memory law's named Functions of any leg scheme with ``memory_force_expr``,
+    ``next_sets_expr``, ``free_foot_expr``, ``deflections_expr`` and ``param_names``."""
+    r, r_regime = ca.SX.sym("r", 3), ca.SX.sym("r_regime", 3)
+    sets = ca.SX.sym("sets", 3)
+    p = ca.SX.sym("p", len(leg.param_names))
+    rate = ca.SX.sym("rate_gain"), ca.SX.sym("rate_offset", 3)
+    P = leg.memory_force_expr(r, sets, p, rate=rate)
+    Dp = ca.jacobian(leg.memory_force_expr(r, sets, p, r_regime, rate), r)
+    x0, rate0, dt = ca.SX.sym("deflection_start", 3), ca.SX.sym("mean_rate", 3), ca.SX.sym("dt")
+    names = ["r", "sets", "p", "rate_gain", "rate_offset"]
+    return {
+        "strut_force_memory": ca.Function("strut_force_memory", [r, sets, p, *rate], [P],
+                                          names, ["P"]),
+        "strut_stiffness_memory": ca.Function("strut_stiffness_memory",
+                                              [r, sets, p, *rate, r_regime], [Dp],
+                                              names + ["r_regime"], ["Dp"]),
+        "strut_next_set": ca.Function("strut_next_set", [r, sets, p],
+                                      [leg.next_sets_expr(r, sets, p)],
+                                      ["r", "sets", "p"], ["next_set"]),
+        "strut_deflections": ca.Function("strut_deflections", [r], [leg.deflections_expr(r)],
+                                         ["r"], ["x"]),
+        "strut_free_foot": ca.Function(
+            "strut_free_foot", [sets, p, x0, rate0, dt],
+            [leg.free_foot_expr(sets, p, x0, rate0, dt)],
+            ["sets", "p", "deflection_start", "mean_rate", "dt"], ["r"]),
+    }
+
+
 @dataclass(frozen=True)
 class _Element:
     name: str            # 'S', 'M_beta', 'M_gamma'
@@ -298,86 +331,68 @@ class HingedStrut:
     def _axial(self) -> _Element:
         return next(el for el in self.elements if el.name == "S")
 
-    def memory_force_expr(self, r, s, p, r_regime=None, rate=(0.0, 0.0)):
-        """P(r) of (2.1) with the axial element on the memory law (A1) at set ``s``.
+    def memory_force_expr(self, r, sets, p, r_regime=None, rate=None):
+        """P(r) of (2.1) with the elements on the memory law (A1) at ``sets``.
 
-        The bending elements take their loading curves (an elastic hinge).
-        ``r_regime`` (default ``r``): the foot position that picks the axial
+        ``sets`` (3): the sets of (S, M_β, M_γ); an element that keeps none
+        takes its loading curve (the hinge springs, whose memory the scene
+        refuses). ``r_regime`` (default ``r``): the foot position that picks each
         element's regime (``absorber.memory_force``). ``rate`` = (a, b): the
-        deflection rates of the dampers are a·x + b, the affine form of (A3), with
-        x = (δ_S, β, γ − γ₀) and b of length 3 (or a scalar for the axial damper
-        alone).
+        deflection rates of the dampers are a·x + b, the affine form of (A3),
+        with x = (δ_S, β, γ − γ₀) and b of length 3.
         """
         g = self.geometry(r)
         x = self._deflections(g)
+        x_regime = None if r_regime is None else self._deflections(self.geometry(r_regime))
         forces = dict(S=0.0, M_beta=0.0, M_gamma=0.0)
         for el in self.elements:
-            theta = self._theta(el, p)
-            if el.name == "S" and el.curve.has_memory:
-                x_regime = None if r_regime is None else self.geometry(r_regime)["delta_S"]
-                forces["S"] = absorber.memory_force(el.curve, x["S"], s, theta, x_regime)
-            else:
-                forces[el.name] = el.curve.force(x[el.name], 0.0, theta)
-            if el.curve.has_damper:
-                k = ("S", "M_beta", "M_gamma").index(el.name)
-                offset = rate[1] if isinstance(rate[1], (int, float)) else rate[1][k]
-                forces[el.name] = forces[el.name] + absorber.damper_force(
-                    el.curve, rate[0] * x[el.name] + offset)
+            k = _ELEMENT_ORDER.index(el.name)
+            forces[el.name] = absorber.element_force(
+                el.curve, x[el.name], sets[k], self._theta(el, p),
+                None if x_regime is None else x_regime[el.name],
+                None if rate is None else rate[0] * x[el.name] + rate[1][k])
         forces["M_gamma"] = -self.sigma * forces["M_gamma"]            # docs/paper-notes.md §2
         return (forces["S"] * g["e_S"] + forces["M_beta"] / g["L"] * g["e_beta"]
                 + forces["M_gamma"] / g["L"] * g["e_gamma"])           # (2.1)
 
-    def memory_functions(self) -> dict[str, ca.Function]:
-        """The named Functions of the memory law (A1)-(A2) for a leg whose axial
-        element keeps a set (``axial_memory``); built once, cached.
+    def next_sets_expr(self, r, sets, p):
+        """The sets after the foot reached ``r`` (A2), in the order (S, M_β, M_γ)."""
+        x = self._deflections(self.geometry(r))
+        out = [sets[k] for k in range(3)]
+        for el in self.elements:
+            k = _ELEMENT_ORDER.index(el.name)
+            out[k] = absorber.element_next_set(el.curve, x[el.name], sets[k], self._theta(el, p))
+        return ca.vertcat(*out)
 
-        ``strut_force_memory(r, stroke_set, p, rate_gain, rate_offset) -> P``
-        (the dampers' stroke rate a·δ_S + b, (A3)),
-        ``strut_stiffness_memory(..., r_regime) -> Dp`` (∂P/∂r in the regime
-        that ``r_regime`` picks, the dampers' a·c included),
-        ``strut_next_set(r, stroke_set, p) -> next_set`` (A2) and
-        ``strut_free_foot(stroke_set, p, stroke_start, mean_rate, dt) -> r``
-        (a free foot at the end of a step, body frame, along e₀: at the free
-        stroke x₀(s), or relaxing towards it behind a damper, (A4)).
+    def free_foot_expr(self, sets, p, x_start, mean_rate, dt):
+        """A free foot at the end of a step (body frame): along e₀ at the axial
+        element's free stroke, or relaxing towards it behind a damper (A4); the
+        hinge angles at rest."""
+        el = self._axial()
+        free = absorber.relaxed_deflection(el.curve, x_start[0], sets[0], mean_rate[0], dt,
+                                           self._theta(el, p))
+        return ca.DM(self.hinge) + (self.length + free) * ca.DM(self.e0)
+
+    def memory_functions(self) -> dict[str, ca.Function]:
+        """The named Functions of the memory law (A1)-(A4) for a leg that keeps a set
+        or has a damper (``axial_state``); built once, cached. Shared by every leg
+        scheme (docs/tripod.md, "Leg schemes"): ``sets``, ``rate_offset``,
+        ``deflection_start`` and ``mean_rate`` have one entry per element.
+
+        ``strut_force_memory(r, sets, p, rate_gain, rate_offset) -> P`` (the
+        dampers' rates a·x + b, (A3)), ``strut_stiffness_memory(..., r_regime)
+        -> Dp`` (∂P/∂r in the regime that ``r_regime`` picks, the dampers' a·c
+        included), ``strut_next_set(r, sets, p) -> next_set`` (A2),
+        ``strut_free_foot(sets, p, deflection_start, mean_rate, dt) -> r`` (a
+        free foot at the end of a step, body frame, (A4)) and
+        ``strut_deflections(r) -> x`` (each element's deflection).
         """
         if not self.axial_state:
-            raise ValueError("this strut's axial element keeps no state (a crushable element, "
+            raise ValueError("this leg's elements keep no state (a crushable element, "
                              "one with an unloading curve, or a damped one does); use "
                              "`functions()`.")
         if self._memory_functions is None:
-            r, r_regime = ca.SX.sym("r", 3), ca.SX.sym("r_regime", 3)
-            s = ca.SX.sym("stroke_set")
-            p = ca.SX.sym("p", len(self.param_names))
-            rate = ca.SX.sym("rate_gain"), ca.SX.sym("rate_offset", 3)
-            el = self._axial()
-            theta = self._theta(el, p)
-            P = self.memory_force_expr(r, s, p, rate=rate)
-            Dp = ca.jacobian(self.memory_force_expr(r, s, p, r_regime, rate), r)
-            delta_S = self.geometry(r)["delta_S"]
-            x0, rate0, dt = ca.SX.sym("stroke_start"), ca.SX.sym("mean_rate"), ca.SX.sym("dt")
-            if el.curve.has_memory:
-                s_next = absorber.next_set(el.curve, delta_S, s, theta)
-            else:                       # a damped elastic element: nothing to remember
-                s_next = s
-            free = (absorber.relaxed_deflection(el.curve, x0, s, rate0, dt, theta)
-                    if el.curve.has_memory or el.curve.has_damper
-                    else absorber.free_deflection(el.curve, s, theta))
-            free = ca.DM(self.hinge) + (self.length + free) * ca.DM(self.e0)
-            names = ["r", "stroke_set", "p", "rate_gain", "rate_offset"]
-            self._memory_functions = {
-                "strut_force_memory": ca.Function("strut_force_memory", [r, s, p, *rate], [P],
-                                                  names, ["P"]),
-                "strut_stiffness_memory": ca.Function(
-                    "strut_stiffness_memory", [r, s, p, *rate, r_regime], [Dp],
-                    names + ["r_regime"], ["Dp"]),
-                "strut_next_set": ca.Function("strut_next_set", [r, s, p], [s_next],
-                                              ["r", "stroke_set", "p"], ["next_set"]),
-                "strut_deflections": ca.Function(
-                    "strut_deflections", [r], [self.deflections_expr(r)], ["r"], ["x"]),
-                "strut_free_foot": ca.Function(
-                    "strut_free_foot", [s, p, x0, rate0, dt], [free],
-                    ["stroke_set", "p", "stroke_start", "mean_rate", "dt"], ["r"]),
-            }
+            self._memory_functions = memory_functions_of(self)
         return self._memory_functions
 
     def loading_set(self, r, p=None) -> float:
@@ -437,6 +452,29 @@ class HingedStrut:
                     ["r"], ["L", "delta_S", "beta", "gamma", "e_S", "e_beta", "e_gamma"]),
             }
         return self._functions
+
+    # -- the leg-scheme interface (docs/tripod.md, "Leg schemes") ---------------------
+    #: The axial element: its stroke is the leg's ``stroke`` output and its curve's
+    #: stroke limit the one the run's bottoming check reads.
+    axial_element = "S"
+    #: Which elements' deflections a free foot relaxes over a step (A4); the hinge
+    #: angles return to rest at once.
+    relaxes_free = (1.0, 0.0, 0.0)
+
+    def deflections(self, geo) -> dict:
+        """Each element's own deflection from ``strut_geometry``'s outputs ``geo``:
+        δ_S (m), β and γ − γ₀ (rad)."""
+        return {"S": geo["delta_S"], "M_beta": geo["beta"], "M_gamma": geo["gamma"] - self.gamma0}
+
+    def deflection_outputs(self, geo) -> dict:
+        """The per-leg output fields of the deflections (``symcushion.layout``)."""
+        x = self.deflections(geo)
+        return dict(stroke=x["S"], beta=x["M_beta"], gamma_deflection=x["M_gamma"],
+                    secondary_stroke=ca.DM.zeros(2))
+
+    def element_extent(self, name: str) -> float:
+        """The range of an element's deflection worth sampling (m or rad)."""
+        return self.length if name == "S" else np.pi / 2
 
     # -- numeric convenience ------------------------------------------------------
     def _check_r(self, r):

@@ -211,15 +211,26 @@ def leg_work(fns, start: dict, end: dict, stays) -> dict:
     return dict(work_axial=axial, work_bending=leg - axial, work_friction=friction)
 
 
+#: The state fields of the memory law (symcushion.absorber): each element's set and
+#: its mean rate over the last step, the leg's own element first.
+MEMORY_FIELDS = ("stroke_set", "element_set", "stroke_chord", "element_chord")
+
+
+def _memory_state(res) -> dict:
+    """The memory law's state fields from a foot's step result (sets and chords, 3)."""
+    sets, chords = res["sets"], res["chords"]
+    return dict(stroke_set=sets[0], element_set=sets[1:], stroke_chord=chords[0],
+                element_chord=chords[1:])
+
+
 def _memory_leg_input(leg, fns, p_leg, foot, rho0, h) -> LegInput:
     """A leg on the memory law in the step: its free foot at the start is where it
     relaxed to, at the end where it relaxes to over the step (symcushion.absorber)."""
-    stroke0 = fns["strut_geometry"](rho0)[1]
-    rest = fns["strut_free_foot"](foot["stroke_set"], p_leg, stroke0, foot["stroke_chord"], h)
+    sets = ca.vertcat(foot["stroke_set"], foot["element_set"])
+    chords = ca.vertcat(foot["stroke_chord"], foot["element_chord"])
+    rest = fns["strut_free_foot"](sets, p_leg, fns["strut_deflections"](rho0), chords, h)
     return LegInput(strut=leg, fns=fns, p_leg=p_leg, rest=rest, foot=foot, rho0=rho0,
-                    stroke_set=foot["stroke_set"], stroke_chord=foot["stroke_chord"],
-                    bend_chord=foot["bend_chord"],
-                    rest_start=rho0)
+                    sets=sets, chords=chords, rest_start=rho0)
 
 
 def build_model(scene: Scene) -> StepModel:
@@ -251,8 +262,8 @@ def build_model(scene: Scene) -> StepModel:
     body = xl.unpack(X)
     pos, vel, quat, omega = (body[k] for k in ("position", "velocity", "attitude",
                                                 "angular_velocity"))
-    feet = [{f: body[f][j] for f in ("foot", "contact", "force_body", "stroke_set",
-                                     "stroke_chord", "bend_chord")} for j in range(n_legs)]
+    feet = [{f: body[f][j] for f in ("foot", "contact", "force_body") + MEMORY_FIELDS}
+            for j in range(n_legs)]
     # the legs on the memory law (symcushion.absorber): their unloaded foot is where the
     # axial element's set leaves it
     memory = [scene.hysteresis == "memory" and leg.axial_state for leg in legs]
@@ -524,9 +535,9 @@ def build_model(scene: Scene) -> StepModel:
             contact = ca.if_else(lk, LOCKED, ca.if_else(stays, ca.if_else(loading1, 1.0,
                                                                           UNLOADING), 0.0))
             b1_active = ca.logic_and(b1_active, ca.logic_not(ca.logic_or(st, locked0[j])))
-        kept = ("stroke_set", "stroke_chord", "bend_chord")
         new_feet.append(dict(foot=foot_w, contact=contact, force_body=P1,
-                             **{f: (r if memory[j] else feet[j])[f] for f in kept}))
+                             **(_memory_state(r) if memory[j]
+                                else {f: feet[j][f] for f in MEMORY_FIELDS})))
         if scene.events in ("branch", "lock") and locates_switch(leg):
             # the kick at the located loading/unloading switch (symcushion.branch_switch)
             dF, dT, _ = branch_switch_kick(
@@ -544,8 +555,7 @@ def build_model(scene: Scene) -> StepModel:
         geo = fns["strut_geometry"].call(dict(r=rho1))
         outputs.append(dict(in_contact=ca.if_else(stays, 1.0, 0.0), mode=mode, force=R1 @ P1,
                             normal=ca.if_else(stays, r["normal_w"], ca.DM.zeros(3)),
-                            axis=R1 @ geo["e_S"], stroke=geo["delta_S"], beta=geo["beta"],
-                            gamma_deflection=geo["gamma"] - leg.gamma0,
+                            axis=R1 @ geo["e_S"], **leg.deflection_outputs(geo),
                             **leg_work(fns, dict(rho=rho0[j], P=feet[j]["force_body"], R=R,
                                                  foot=ca.if_else(r["in_contact"],
                                                                  feet[j]["foot"], r["r_s"])),
@@ -556,10 +566,8 @@ def build_model(scene: Scene) -> StepModel:
     omega1 = omega1 + h * (inertia_inv @ switch_torque)
 
     x_next = xl.pack(position=pos1, velocity=vel1, attitude=quat1, angular_velocity=omega1,
-                     **{f: [foot[f] for foot in new_feet] for f in ("foot", "contact",
-                                                                    "force_body", "stroke_set",
-                                                                    "stroke_chord",
-                                                                    "bend_chord")})
+                     **{f: [foot[f] for foot in new_feet]
+                        for f in ("foot", "contact", "force_body") + MEMORY_FIELDS})
     y = yl.pack(acceleration=acc1, **{f.name: [o[f.name] for o in outputs]
                                        for f in yl.leg_fields})
     step = ca.Function("touchdown_step", [X, p, h], [x_next, y], ["x", "p", "dt"],

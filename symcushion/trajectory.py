@@ -198,6 +198,13 @@ def _assemble(rows, n_legs, gravity) -> Trajectory:
         gamma_deflection=per_leg(y["gamma_deflection"]), criterion=crit, rows=rows)
 
 
+def _numeric(value):
+    """A float, or a 1-D array, from a CasADi or NumPy value."""
+    value = np.asarray(ca.evalf(value) if isinstance(value, (ca.DM, ca.SX)) else value,
+                       dtype=float).ravel()
+    return float(value[0]) if value.size == 1 else value
+
+
 def initial_output(model: StepModel, x0) -> np.ndarray:
     """The output row y of the initial state (no step taken yet), shape (ny,).
 
@@ -209,7 +216,7 @@ def initial_output(model: StepModel, x0) -> np.ndarray:
     x = state_layout(model.n_legs).unpack(np.asarray(x0, dtype=float))
     R = quat_to_rot_np(x["attitude"])
     legs = {f: [] for f in ("in_contact", "mode", "force", "normal", "axis", "stroke", "beta",
-                            "gamma_deflection")}
+                            "gamma_deflection", "secondary_stroke")}
     for j, leg in enumerate(scene.legs):
         touching = bool(x["contact"][j] > 0.5)
         rho = R.T @ (x["foot"][j] - x["position"]) if touching else np.asarray(leg.rest_foot)
@@ -221,8 +228,7 @@ def initial_output(model: StepModel, x0) -> np.ndarray:
         for name, value in (("in_contact", float(touching)), ("mode", 1.0 if touching else 0.0),
                             ("force", R @ x["force_body"][j]), ("normal", normal),
                             ("axis", R @ np.asarray(geo["e_S"]).ravel()),
-                            ("stroke", float(geo["delta_S"])), ("beta", float(geo["beta"])),
-                            ("gamma_deflection", float(geo["gamma"]) - leg.gamma0)):
+                            *((k, _numeric(v)) for k, v in leg.deflection_outputs(geo).items())):
             legs[name].append(value)
     acc0 = scene.gravity + R @ x["force_body"].sum(axis=0) / scene.body.mass
     return np.asarray(output_layout(model.n_legs).pack(acceleration=acc0, **legs),

@@ -42,7 +42,9 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from . import absorber
 from .characteristics import Curve
+from .strut import memory_functions_of
 from .validation import real, vector
 
 __all__ = ["InvertedTripod", "SINGULAR_ANGLE", "ELEMENTS", "tripod_geometry_expr",
@@ -55,6 +57,11 @@ __all__ = ["InvertedTripod", "SINGULAR_ANGLE", "ELEMENTS", "tripod_geometry_expr
 #: preload). 5° keeps the smallest lateral stiffness above sin²5° ≈ 0.8 % of
 #: the secondaries' scale; real gear is designed near 30°-90°.
 SINGULAR_ANGLE = np.deg2rad(5.0)
+
+#: Newton steps that put a free foot where its elements' free deflections meet: the
+#: deflections of a free leg are its sets, millimetres from the rest foot, where
+#: q(r) is nearly linear; three steps take the residual to round-off.
+FREE_FOOT_NEWTON_STEPS = 3
 
 #: Element names, in the order of q, f and ``p``.
 ELEMENTS = ("primary", "secondary2", "secondary3")
@@ -179,11 +186,43 @@ class InvertedTripod:
         self.rest_lengths = np.asarray(ca.evalf(tripod_rest_lengths(*self._dm_geometry(
             ca.DM(self.foot))))).ravel()
         self._functions = None
+        self._memory_functions = None
 
     # -- interface shared with HingedStrut ---------------------------------------
     hinge = property(lambda self: self.h1, doc="The primary's joint h₁ (m).")
-    axial_state = property(lambda self: False, doc="No memory law: always False.")
+    #: A free foot relaxes every element's deflection over a step (A4).
+    relaxes_free = (1.0, 1.0, 1.0)
+
+    @property
+    def axial_state(self) -> bool:
+        """True if the leg needs the memory law's state: an element that keeps a set
+        or has a damper."""
+        return any(el.curve.has_memory or el.curve.has_damper for el in self.elements)
+
     axial_memory = axial_state
+
+    rigid = False                      # every element is a curve of the user's
+    axial_element = "primary"
+
+    @property
+    def e0(self) -> np.ndarray:
+        """Rest direction of the primary, (foot − h₁)/L₀."""
+        return (self.foot - self.h1) / self.length
+
+    def deflections(self, geo) -> dict:
+        """Each element's deflection (m) from ``strut_geometry``'s outputs ``geo``."""
+        return {"primary": geo["delta_S"], "secondary2": geo["stroke_secondary"][0],
+                "secondary3": geo["stroke_secondary"][1]}
+
+    def deflection_outputs(self, geo) -> dict:
+        """The per-leg output fields of the deflections (``symcushion.layout``): the
+        primary's stroke and the secondaries'; no hinge angles."""
+        return dict(stroke=geo["delta_S"], beta=0.0, gamma_deflection=0.0,
+                    secondary_stroke=geo["stroke_secondary"])
+
+    def element_extent(self, name: str) -> float:
+        """The range of an element's deflection worth sampling (m)."""
+        return self.length
 
     @property
     def param_names(self) -> tuple[str, ...]:
@@ -289,6 +328,57 @@ class InvertedTripod:
         """
         J = ca.jacobian(self.geometry(r)["q"], r)
         return J.T @ self.element_forces(r, v, p, r_branch)            # (T1)
+
+    # -- the memory law (symcushion.absorber) ---------------------------------------
+    def deflections_expr(self, r):
+        """q = (δ_S, δ₂, δ₃) at foot ``r`` (m)."""
+        return self.geometry(r)["q"]
+
+    def memory_force_expr(self, r, sets, p, r_regime=None, rate=None):
+        """P = J(r)ᵀ f (T1) with the elements on the memory law (A1) at ``sets`` (3);
+        ``r_regime`` picks each element's regime, ``rate`` = (a, b) the dampers'
+        rates a·q + b (A3)."""
+        q = self.geometry(r)["q"]
+        q_regime = None if r_regime is None else self.geometry(r_regime)["q"]
+        f = ca.vertcat(*[absorber.element_force(
+            el.curve, q[i], sets[i], self._theta(el, p),
+            None if q_regime is None else q_regime[i],
+            None if rate is None else rate[0] * q[i] + rate[1][i])
+            for i, el in enumerate(self.elements)])
+        return ca.jacobian(q, r).T @ f                                  # (T1)
+
+    def next_sets_expr(self, r, sets, p):
+        """The elements' sets after the foot reached ``r`` (A2)."""
+        q = self.geometry(r)["q"]
+        return ca.vertcat(*[absorber.element_next_set(el.curve, q[i], sets[i],
+                                                      self._theta(el, p))
+                            for i, el in enumerate(self.elements)])
+
+    def free_foot_expr(self, sets, p, x_start, mean_rate, dt):
+        """A free foot at the end of a step (body frame): each element at its free
+        deflection, or relaxing towards it behind a damper (A4); the foot where the
+        three deflections meet, by Newton's method from the rest foot."""
+        target = ca.vertcat(*[absorber.relaxed_deflection(
+            el.curve, x_start[i], sets[i], mean_rate[i], dt, self._theta(el, p))
+            for i, el in enumerate(self.elements)])
+        r = ca.SX.sym("r", 3)
+        q = self.geometry(r)["q"]
+        newton = ca.Function("tripod_free_newton", [r, target_sym := ca.SX.sym("q", 3)],
+                             [r - ca.solve(ca.jacobian(q, r), q - target_sym)])
+        foot = ca.DM(self.foot)
+        for _ in range(FREE_FOOT_NEWTON_STEPS):
+            foot = newton(foot, target)
+        return foot
+
+    def memory_functions(self) -> dict[str, ca.Function]:
+        """The memory law's named Functions, as ``HingedStrut.memory_functions``."""
+        if not self.axial_state:
+            raise ValueError("this leg's elements keep no state (a crushable element, "
+                             "one with an unloading curve, or a damped one does); use "
+                             "`functions()`.")
+        if self._memory_functions is None:
+            self._memory_functions = memory_functions_of(self)
+        return self._memory_functions
 
     # -- Functions --------------------------------------------------------------
     def functions(self) -> dict[str, ca.Function]:

@@ -100,7 +100,7 @@ def test_one_header_documents_every_function(built):
         assert signature in header, signature
         assert f"int {name}(const casadi_real** arg" in header
     assert "touchdown_step(x, p, dt) -> (x_next, y)" in header
-    assert "[57x300]" in header  # X of the rollout (13 + 11 per leg), N = scene.steps
+    assert "[65x300]" in header  # X of the rollout (13 + 13 per leg), N = scene.steps
 
 
 def test_cached_build_is_not_recompiled(built, scene):
@@ -179,7 +179,7 @@ def test_standalone_program_equals_python_rollout(built, scene, tmp_path):
     assert int(report["steps"]) == scene.steps and float(report["per_step_us"]) > 0
     header = csv.read_text().splitlines()[0].split(",")
     assert header[:4] == ["t", "body_position_x_m", "body_position_y_m", "body_position_z_m"]
-    assert len(header) == 1 + 13 + 11 * 4      # t, body, four legs
+    assert len(header) == 1 + 13 + 13 * 4      # t, body, four legs
     table = np.loadtxt(csv, delimiter=",", skiprows=1)
     model = build_model(scene)
     x0 = initial_state(scene)

@@ -20,14 +20,14 @@ def test_block_sizes_and_reexport():
     import symcushion.simulate  # noqa: F401  (the compatibility module)
     import sys
     sim = sys.modules["symcushion.simulate"]
-    assert (layout.BODY_STATE, layout.LEG_STATE, layout.BODY_OUT, layout.LEG_OUT) == (13, 11, 3, 17)
-    assert (sim.BODY_STATE, sim.LEG_STATE, sim.BODY_OUT, sim.LEG_OUT) == (13, 11, 3, 17)
+    assert (layout.BODY_STATE, layout.LEG_STATE, layout.BODY_OUT, layout.LEG_OUT) == (13, 13, 3, 19)
+    assert (sim.BODY_STATE, sim.LEG_STATE, sim.BODY_OUT, sim.LEG_OUT) == (13, 13, 3, 19)
     assert sim.MODES == {0: "free", 1: "stick", 2: "slip", 3: "lift-off"}
 
 
 def test_columns_follow_the_naming_scheme():
     cols = state_columns(3)
-    assert len(cols) == 13 + 11 * 3 and len(set(cols)) == len(cols)
+    assert len(cols) == 13 + 13 * 3 and len(set(cols)) == len(cols)
     assert cols[:4] == ["body_position_x_m", "body_position_y_m", "body_position_z_m",
                         "body_velocity_x_m_s"]
     assert cols[6:10] == ["body_attitude_w_1", "body_attitude_x_1", "body_attitude_y_1",
@@ -53,7 +53,7 @@ def test_pack_unpack_roundtrip_numpy_1d_and_2d():
     assert lay.legs(X, "force_body").shape == (4, 3, 5)
     assert lay.legs(X, "contact").shape == (4, 5)
     np.testing.assert_array_equal(lay.get(X, "velocity"), X[3:6])
-    np.testing.assert_array_equal(lay.get(X, "contact", 2), X[13 + 2 * 11 + 3])
+    np.testing.assert_array_equal(lay.get(X, "contact", 2), X[13 + 2 * 13 + 3])
 
 
 def test_pack_unpack_casadi():
@@ -77,7 +77,7 @@ def test_bad_arguments_name_themselves():
         lay.slice("stroke", 0)
     with pytest.raises(IndexError, match="`leg`"):
         lay.slice("foot", 2)
-    with pytest.raises(ValueError, match="35 rows"):
+    with pytest.raises(ValueError, match="39 rows"):
         lay.get(np.zeros(5), "position")
     with pytest.raises(ValueError, match="missing"):
         lay.pack(position=np.zeros(3))

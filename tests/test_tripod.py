@@ -471,7 +471,10 @@ def test_leg_scheme_interface():
     f = leg.forces(r, (0, 0, 1), p)
     assert f[0] == pytest.approx(2 * 2e5 * leg.strokes(r)[0], rel=1e-13)
     assert f[1] == pytest.approx(5e3, rel=1e-13)   # tension crush force halved by p
-    assert np.array_equal(leg.hinge, APOLLO["h1"]) and leg.axial_state is False
+    # a crushable secondary keeps a set under the memory law; linear elements keep none
+    assert np.array_equal(leg.hinge, APOLLO["h1"]) and leg.axial_state is True
+    assert make_leg(dict(primary=Linear(2e5), secondary2=Linear(7e5),
+                         secondary3=Linear(7e5))).axial_state is False
     assert leg.length == pytest.approx(np.linalg.norm(np.subtract(APOLLO["foot"], APOLLO["h1"])),
                                        rel=1e-15)
     with pytest.raises(ValueError, match="`p` must have 8 entries"):
