@@ -34,7 +34,7 @@ def test_columns_follow_the_naming_scheme():
                           "body_attitude_z_1"]
     assert cols[13:17] == ["leg0_foot_x_m", "leg0_foot_y_m", "leg0_foot_z_m", "leg0_contact_1"]
     out = output_columns(3)
-    assert len(out) == 3 + 17 * 3
+    assert len(out) == 3 + 19 * 3
     assert out[0] == "body_acceleration_x_m_s2"
     assert out[layout.BODY_OUT + 2 * layout.LEG_OUT + 4] == "leg2_force_z_N"
     assert out[layout.BODY_OUT + 1] == "leg0_mode_1"
