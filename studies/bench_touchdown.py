@@ -4,14 +4,18 @@ Question (the cost items of the exact contact step): for the Fig. 4 scene
 (4 rods on a dome, μ = 0.05) with the implicit contact step, and the Fig. 3
 scene (μ = 0, its own method), how many µs does one compiled symcushion step
 take against one MuJoCo step on the project's MuJoCo model of the same scene,
-both run natively in this process; and how long does gcc take at -O3 on the
+both run natively in this process (the two timed alternately, call by call,
+so that both see the same load of the shared machine); and how long does gcc take at -O3 on the
 Fig. 4 touchdown source?
 
 Method.
 symcushion: ``symcushion.codegen.compiled_model`` builds the scene's C code;
 its compiled ``touchdown_rollout`` (N steps in one C call, no Python per
 step) is called on the scene's initial state with the scene's own
-parameters (``model.default_p``: gravity, mass, inertia, μ), best of
+parameters (``model.default_p``: gravity, mass, inertia, μ) through
+``Function.buffer()``, which evaluates into NumPy arrays allocated once (as
+``mj_step`` writes into its ``MjData``; a plain call also allocates the
+N-column outputs, 0.1-0.4 µs per step, printed for comparison), best of
 BEST_OF calls; µs per step = time / N. Before timing, one call's states and
 outputs must be finite and equal, bit for bit, to the uncompiled
 ``build_model(scene)`` rolled out with the same x0, p and Δt
@@ -57,7 +61,7 @@ ROOT = Path(__file__).resolve().parent.parent
 BENCH = "bench_touchdown"
 FIG3 = ROOT / "studies" / "fig3.toml"
 FIG4 = ROOT / "studies" / "fig4.toml"
-#: Timed calls per measurement, the same for both programs; the best is kept
+#: Timed calls per measurement, the same for both programs, alternated; the best is kept
 #: (the least disturbed). The first few calls of the compiled rollout run
 #: up to 1.7 times slower than the rest (caches, the output arrays' first
 #: pages), and a loaded 2-core machine preempts some calls: with 5 calls the
@@ -90,20 +94,38 @@ def check_symcushion(scene, rollout, steps: int) -> np.ndarray:
     return p
 
 
-def symcushion_us(scene, folder: Path) -> tuple[float, float, int]:
-    """(µs per compiled step, gcc CPU s at -O3 of the touchdown source, SX instructions)."""
+def symcushion_timer(scene, folder: Path):
+    """(timer, steps, gcc CPU s of the touchdown source, SX instructions): ``timer()``
+    runs the checked compiled rollout once into preallocated arrays and returns its
+    seconds; ``timer(call=True)`` times a plain call (outputs allocated by CasADi)."""
     steps = int(round(SECONDS / scene.dt))
     model = compiled_model(scene, folder, steps=steps)
     x0 = initial_state(scene)
     rollout = model.rollout(steps)
     p = check_symcushion(scene, rollout, steps)
-    best = np.inf
-    for _ in range(BEST_OF):
+    buffer, evaluate = rollout.buffer()
+    inputs = [np.array(x0, dtype=float), np.array(p, dtype=float), np.array([scene.dt])]
+    outputs = [np.zeros(rollout.nnz_out(i)) for i in range(rollout.n_out())]
+    for i, a in enumerate(inputs):
+        buffer.set_arg(i, memoryview(a))
+    for i, a in enumerate(outputs):
+        buffer.set_res(i, memoryview(a))
+    evaluate()
+    X_ref = np.asarray(rollout(x0, p, scene.dt)[0], dtype=float).ravel(order="F")
+    check_equal(BENCH, f"{scene.name} rollout evaluated into buffers: X", outputs[0], X_ref,
+                rtol=BITWISE, reference_name="the checked rollout")
+
+    def timer(call: bool = False, _keep=(buffer, inputs, outputs)) -> float:
+        # the buffer holds raw pointers: its arrays must live as long as the timer
         start = time.perf_counter()
-        rollout(x0, p, scene.dt)
-        best = min(best, time.perf_counter() - start)
+        if call:
+            rollout(x0, p, scene.dt)
+        else:
+            evaluate()
+        return time.perf_counter() - start
+
     seconds = compile_cpu(folder / f"{codegen.TOUCHDOWN}.c", folder)
-    return 1e6 * best / steps, seconds, build_model(scene).step.n_instructions()
+    return timer, steps, seconds, build_model(scene).step.n_instructions()
 
 
 def mujoco_start(scene):
@@ -153,18 +175,33 @@ def check_mujoco(scene, steps: int) -> None:
                 rtol=BITWISE, reference_name=name)
 
 
-def mujoco_us(scene) -> tuple[float, float]:
-    """(µs per native mj_step, MuJoCo timestep in s) on the project's model of the scene."""
+def mujoco_timer(scene):
+    """(timer, steps, MuJoCo timestep in s): ``timer()`` runs the checked native
+    ``mj_step`` over SECONDS from the scene's start and returns its seconds."""
     mujoco, model, data, start = mujoco_start(scene)
     steps = int(round(SECONDS / model.opt.timestep))
     check_mujoco(scene, steps)
-    best = np.inf
-    for _ in range(BEST_OF):
+
+    def timer() -> float:
         start()
         began = time.perf_counter()
         mujoco.mj_step(model, data, nstep=steps)
-        best = min(best, time.perf_counter() - began)
-    return 1e6 * best / steps, float(model.opt.timestep)
+        return time.perf_counter() - began
+
+    return timer, steps, float(model.opt.timestep)
+
+
+def measure(scene, folder: Path) -> dict:
+    """Best of BEST_OF interleaved calls of symcushion's rollout and MuJoCo's steps."""
+    sym, n_sym, gcc, instr = symcushion_timer(scene, folder)
+    mj, n_mj, h = mujoco_timer(scene)
+    best = dict(sym=np.inf, call=np.inf, mj=np.inf)
+    for _ in range(BEST_OF):
+        best["sym"] = min(best["sym"], sym())
+        best["mj"] = min(best["mj"], mj())
+        best["call"] = min(best["call"], sym(call=True))
+    return dict(us=1e6 * best["sym"] / n_sym, us_call=1e6 * best["call"] / n_sym,
+                mj=1e6 * best["mj"] / n_mj, h=h, gcc=gcc, instr=instr)
 
 
 def main() -> None:
@@ -172,21 +209,20 @@ def main() -> None:
         raise SystemExit("MuJoCo is not installed: pip install symcushion[peers]")
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
-        for label, path, method, target in (("Fig. 4", FIG4, "implicit", 2.0),
-                                            ("Fig. 3", FIG3, None, 3.5)):
+        for label, path, method, target in (("Fig. 4", FIG4, "implicit", 5.0),
+                                            ("Fig. 3", FIG3, None, 5.0)):
             scene = load_scene(path)
             if method:
                 scene = scene.with_(method=method)
             scene = scene.with_(duration=SECONDS)
-            us, gcc, instr = symcushion_us(scene, Path(tmp) / label.replace(". ", ""))
-            mj, h = mujoco_us(scene)
-            rows.append((label, scene.method, scene.mu, us, gcc, instr, mj, h, target))
-    print("| scene | method | μ | SX instr. (step) | gcc -O3 CPU s | symcushion µs/step (Δt) "
-          "| MuJoCo µs/step (h) | MuJoCo/symcushion per step | target |")
+            rows.append((label, scene, target, measure(scene, Path(tmp) / label.replace(". ", ""))))
+    print("| scene | method | μ | SX instr. (step) | gcc -O3 CPU s | symcushion µs/step "
+          "(plain call) | MuJoCo µs/step (h) | MuJoCo/symcushion per step | target |")
     print("|---|---|---:|---:|---:|---:|---:|---:|---:|")
-    for label, method, mu, us, gcc, instr, mj, h, target in rows:
-        print(f"| {label} | {method} | {mu:g} | {instr:,} | {gcc:.1f} | {us:.2f} | "
-              f"{mj:.2f} ({h:g} s) | {mj / us:.2f} | ≥ {target:g} |")
+    for label, scene, target, m in rows:
+        print(f"| {label} | {scene.method} | {scene.mu:g} | {m['instr']:,} | {m['gcc']:.1f} | "
+              f"{m['us']:.2f} ({m['us_call']:.2f}) | {m['mj']:.2f} ({m['h']:g} s) | "
+              f"{m['mj'] / m['us']:.2f} | ≥ {target:g} |")
     cases = spatial_cases(np.random.default_rng(2024), NATIVE_CASES)
     called = native_ratio(cases, called=True)
     implicit, robust = called["contact_step_implicit"], called["contact_step_robust"]

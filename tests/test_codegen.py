@@ -251,7 +251,7 @@ def test_invalid_arguments(tmp_path):
 
 
 def test_tunable_scene_generates_clean_c(tmp_path):
-    """With leg parameters p is not empty and the rollout is the model's own mapaccum."""
+    """With leg parameters p grows by the curve parameters; the generated C compiles cleanly."""
     toml = FIG3.read_text().replace('type = "linear"', 'type = "linear"\ntunable = true')
     path = tmp_path / "fig3_tunable.toml"
     path.write_text(toml)
