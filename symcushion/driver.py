@@ -216,6 +216,7 @@ def _check_arguments(scene, model, x0, p, adaptive, eps, stability, monitor, sin
     p = model.default_p if p is None else np.asarray(p, dtype=float)
     if p.shape != (model.np,):
         raise ValueError(f"`p` must have {model.np} entries {model.param_names}, got {p.shape}.")
+    model.check_params(p)           # a leg geometry the built step cannot take
     if stability is True or stability is False:
         stability = STABILITY_SAFETY if stability else 0.0
     if isinstance(stability, (bool, np.bool_)) or not isinstance(stability, (int, float)) \

@@ -151,7 +151,7 @@ class FeetStep:
     def damper_rate(self, leg: LegInput, rho_s):
         """(a, b) of the dampers' end rate a·δ_S + b by (A3), from the foot ρ_s at
         the start of the step and the previous step's mean rate."""
-        x0 = leg.fns["strut_deflections"](rho_s)               # δ_S, β, γ − γ₀ at the start
+        x0 = leg.fns["strut_deflections"](rho_s, leg.p_leg)    # δ_S, β, γ − γ₀ at the start
         h = self.poses.h
         return 1.5 / h, -1.5 * x0 / h - 0.5 * leg.chords                # (A3)
 
@@ -294,7 +294,8 @@ class FeetStep:
             P1 = ca.if_else(stays, fns["strut_force_memory"](rho1, sets, leg.p_leg, *rate),
                             ca.DM.zeros(3))
             sets = fns["strut_next_set"](rho1, sets, leg.p_leg)
-            moved = (fns["strut_deflections"](rho1) - fns["strut_deflections"](rho_s)) / h
+            moved = (fns["strut_deflections"](rho1, leg.p_leg)
+                     - fns["strut_deflections"](rho_s, leg.p_leg)) / h
             # a free foot's elements that do not relax (a strut's hinge angles) return to
             # rest at once: no rate to carry
             chords = ca.if_else(stays, moved, moved * ca.DM(leg.strut.relaxes_free))

@@ -35,7 +35,8 @@ import numpy as np
 
 __all__ = ["Field", "VectorLayout", "BODY_STATE_FIELDS", "LEG_STATE_FIELDS", "BODY_OUT_FIELDS",
            "LEG_OUT_FIELDS", "BODY_STATE", "LEG_STATE", "BODY_OUT", "LEG_OUT", "MODES",
-           "UNITS", "SCENE_PARAM_FIELDS", "ParamLayout", "param_layout", "default_p",
+           "UNITS", "SCENE_PARAM_FIELDS", "LEG_GEOMETRY_FIELDS",
+           "TRIPOD_GEOMETRY_FIELDS", "ParamLayout", "param_layout", "default_p",
            "state_layout", "output_layout", "state_columns", "output_columns",
            "quat_to_rot", "quat_to_rot_np", "quat_mul", "quat_mul_np", "quat_exp",
            "quat_from_axis_angle_np", "body_axis", "body_axis_np", "one_minus_cos_tilt",
@@ -377,16 +378,39 @@ SCENE_PARAM_FIELDS = (
     Field("inertia", "kg_m2", "body inertia about the centre of mass, body axes "
           "(xx, yy, zz, xy, xz, yz of the symmetric tensor)", ("xx", "yy", "zz", "xy", "xz", "yz")),
 )
+#: Geometry entries of ``p``, one block per leg after the scene entries, in the
+#: order the strut's Functions take them (``HingedStrut.geometry_values``).
+LEG_GEOMETRY_FIELDS = (
+    Field("hinge", "m", "hinge position r_h, body axes", _XYZ),
+    Field("e0", "1", "rest direction e₀ of the strut, body axes (normalised in the step)",
+          _XYZ),
+    Field("en", "1", "polar axis e_n of the hinge, body axes (normalised in the step; "
+          "sign(e₀·e_n) must stay the built scene's)", _XYZ),
+    Field("length", "m", "rest length L₀ of the strut"),
+)
+#: Geometry entries of an inverted-tripod leg's block (``InvertedTripod.geometry_values``).
+TRIPOD_GEOMETRY_FIELDS = (
+    Field("h1", "m", "the primary's joint h₁, body axes", _XYZ),
+    Field("h2", "m", "hardpoint h₂ of the first secondary, body axes", _XYZ),
+    Field("h3", "m", "hardpoint h₃ of the second secondary, body axes", _XYZ),
+    Field("foot", "m", "the foot at rest, body axes (sets the rest lengths)", _XYZ),
+    Field("outer_length", "m", "from h₁ to the secondaries' pin Q on the primary"),
+)
 #: Where each entry of the inertia field goes in the 3 × 3 tensor.
 _INERTIA_ENTRIES = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
 
 
 class ParamLayout:
-    """Layout of ``p``: every leg's tunable curve parameters, then the scene entries.
+    """Layout of ``p``: every leg's tunable curve parameters, the scene entries, then
+    (with ``geometry``) every leg's geometry.
 
-    ``p = [leg 0 params, leg 1 params, ..., (mu), gravity (3), mass, inertia (6)]``;
-    names are ``leg{j}.{element}.{name}`` for the legs and ``mu``,
-    ``gravity.x``, ``mass``, ``inertia.xx``, ... for the scene.
+    ``p = [leg 0 params, leg 1 params, ..., (mu), gravity (3), mass, inertia (6),
+    (leg 0 geometry (10), leg 1 geometry, ...)]``; names are
+    ``leg{j}.{element}.{name}`` for the legs' curve parameters, ``mu``,
+    ``gravity.x``, ``mass``, ``inertia.xx``, ... for the scene, and
+    ``leg{j}.hinge.x``, ``leg{j}.e0.x``, ``leg{j}.en.x``, ``leg{j}.length`` for
+    the geometry (:data:`LEG_GEOMETRY_FIELDS`). The geometry comes last so
+    that the entries before it keep the indices they had without it.
 
     Parameters
     ----------
@@ -394,10 +418,20 @@ class ParamLayout:
         Each leg's ``param_names`` (possibly empty).
     friction : bool
         Whether ``mu`` is an entry.
+    geometry : bool
+        Whether the legs' geometry are entries (default False).
+    geometry_fields : sequence of tuple of Field, optional
+        Each leg's geometry block (its scheme's ``geometry_fields``); default
+        :data:`LEG_GEOMETRY_FIELDS` for every leg.
     """
 
-    def __init__(self, leg_param_names, friction: bool):
+    def __init__(self, leg_param_names, friction: bool, geometry: bool = False,
+                 geometry_fields=None):
         self.friction = bool(friction)
+        self.geometry = bool(geometry)
+        leg_param_names = list(leg_param_names)
+        self.geometry_fields = (tuple(geometry_fields) if geometry_fields is not None
+                                else (LEG_GEOMETRY_FIELDS,) * len(leg_param_names))
         names, self._legs, start = [], [], 0
         for j, leg_names in enumerate(leg_param_names):
             names += [f"leg{j}.{n}" for n in leg_names]
@@ -410,6 +444,13 @@ class ParamLayout:
             self._scene[f.name] = slice(start, start + f.size)
             names += [f.name] if not f.axes else [f"{f.name}.{a}" for a in f.axes]
             start += f.size
+        self._geometry = {}                 # "leg{j}.{field}" -> slice
+        for j in range(len(self._legs) if self.geometry else 0):
+            for f in self.geometry_fields[j]:
+                key = f"leg{j}.{f.name}"
+                self._geometry[key] = slice(start, start + f.size)
+                names += [key] if not f.axes else [f"{key}.{a}" for a in f.axes]
+                start += f.size
         self.names, self.size = tuple(names), start
 
     def leg(self, p, j: int):
@@ -417,13 +458,36 @@ class ParamLayout:
         s = self._legs[j]
         return _rows(p, s.start, s.stop)
 
+    def leg_geometry(self, p, j: int):
+        """Rows of leg ``j``'s geometry block in ``p`` (a strut's hinge, e0, en, length;
+        a tripod's h1, h2, h3, foot, outer_length)."""
+        fields = self.geometry_fields[j]
+        s = self.slice(f"leg{j}.{fields[0].name}")
+        return _rows(p, s.start, s.start + _block_size(fields))
+
+    def leg_inputs(self, p, j: int):
+        """The ``p`` of leg ``j``'s strut Functions: its curve parameters, then (with
+        ``geometry``) its geometry block (NumPy or CasADi)."""
+        curve = self.leg(p, j)
+        if not self.geometry:
+            return curve
+        if _is_casadi(p):
+            return ca.vertcat(curve, self.leg_geometry(p, j))
+        return np.concatenate([curve, self.leg_geometry(p, j)])
+
     def slice(self, field: str) -> slice:
-        """Index range of a scene field (``mu``, ``gravity``, ``mass``, ``inertia``)."""
+        """Index range of a scene field (``mu``, ``gravity``, ``mass``, ``inertia``) or of a
+        leg's geometry field (``leg0.hinge``, ``leg0.e0``, ``leg0.en``, ``leg0.length``)."""
+        if field in self._geometry:
+            return self._geometry[field]
         if field not in self._scene:
             extra = " (the scene is frictionless: μ = 0 builds no friction paths; give the " \
                 "scene a μ > 0 to vary it)" if field == "mu" else ""
-            raise KeyError(f"`p` has no field {field!r}{extra}; scene fields: "
-                           f"{list(self._scene)}.")
+            if field.startswith("leg") and not self.geometry:
+                extra = " (this model bakes the legs' geometry in: build it with geometry " \
+                    "= 'input' to vary it)"
+            raise KeyError(f"`p` has no field {field!r}{extra}; fields: "
+                           f"{list(self._scene) + list(self._geometry)}.")
         return self._scene[field]
 
     def get(self, p, field: str):
@@ -450,8 +514,11 @@ class ParamLayout:
         """A copy of ``base`` (shape (size,)) with named scene entries replaced.
 
         ``overrides`` take the scene fields (``mu=0.4``, ``gravity=(0, 0, -1.62)``,
-        ``mass=…``, ``inertia=`` a 3 × 3 symmetric tensor); leg parameters are
-        set by name through :meth:`index`.
+        ``mass=…``, ``inertia=`` a 3 × 3 symmetric tensor) and, with ``geometry``,
+        the legs' geometry fields by name (``**{"leg0.hinge": (0.5, 0, -0.2),
+        "leg0.length": 0.9}``); leg curve parameters are set by name through
+        :meth:`index`. Only sizes and finiteness are checked here; whether a
+        geometry suits the strut is the strut's to say (``HingedStrut.check_geometry``).
         """
         p = np.array(base, dtype=float).ravel()
         if p.shape != (self.size,):
@@ -478,19 +545,30 @@ class ParamLayout:
             raise KeyError(f"`p` has no entry {name!r}; entries: {list(self.names)}.") from None
 
 
-def param_layout(scene) -> ParamLayout:
-    """The :class:`ParamLayout` of a scene (μ an entry only when ``scene.mu > 0``)."""
-    return ParamLayout([leg.param_names for leg in scene.legs], scene.mu > 0)
+def param_layout(scene, geometry: bool = True) -> ParamLayout:
+    """The :class:`ParamLayout` of a scene (μ an entry only when ``scene.mu > 0``; the
+    legs' geometry entries unless ``geometry`` is False)."""
+    return ParamLayout([leg.param_names for leg in scene.legs], scene.mu > 0, geometry,
+                       [leg.geometry_fields for leg in scene.legs])
 
 
-def default_p(scene) -> np.ndarray:
-    """The scene's own values of ``p``: curve parameters, (μ), gravity, mass, inertia."""
-    lay = param_layout(scene)
+def default_p(scene, geometry: bool = True) -> np.ndarray:
+    """The scene's own values of ``p``: curve parameters, (μ), gravity, mass, inertia and
+    (unless ``geometry`` is False) the legs' geometry."""
+    lay = param_layout(scene, geometry)
     legs = [np.asarray(leg.param_values, dtype=float) for leg in scene.legs]
     base = np.concatenate(legs + [np.zeros(lay.size - lay.n_leg_params)])
     overrides = dict(gravity=scene.gravity, mass=scene.body.mass, inertia=scene.body.inertia)
     if lay.friction:
         overrides["mu"] = scene.mu
+    if lay.geometry:
+        for j, leg in enumerate(scene.legs):
+            values = np.asarray(leg.geometry_values, dtype=float)
+            start = 0
+            for f in leg.geometry_fields:
+                block = values[start:start + f.size]
+                overrides[f"leg{j}.{f.name}"] = block if f.axes else float(block[0])
+                start += f.size
     return lay.pack(base, **overrides)
 
 

@@ -21,7 +21,7 @@ from .characteristics import (KINK_WIDTH, RATE_WIDTH, Crushable, Curve, GasSprin
                               PiecewiseLinear, TwoSided)
 from .contact import METHODS  # re-exported: scenes name their contact step
 from .obstacles import ImplicitSurface, Obstacle, Plane, Sphere, Terrain
-from .strut import HingedStrut
+from .strut import LAWS, HingedStrut
 from .tripod import ELEMENTS as TRIPOD_ELEMENTS
 from .tripod import InvertedTripod
 from .formula import Formula, FormulaError
@@ -257,13 +257,14 @@ class Scene:
 def symmetric_legs(count: int, radius: float, height: float, length: float, e0_local,
                    en_local, S: Curve | None = None, M_beta: Curve | None = None,
                    M_gamma: Curve | None = None, azimuth0: float = 0.0,
-                   axial_ratio: float | None = None) -> list:
+                   axial_ratio: float | None = None, law: str = "paper") -> list:
     """``count`` identical legs spaced evenly about the body's z axis.
 
     Leg i has its hinge at azimuth φ_i = azimuth0 + 2πi/count, at ``radius``
     from the axis and ``height`` along z. Its rest direction and polar axis
     are given in the leg's local frame (radial, tangential, z), e.g.
-    ``e0_local=(0, 0, -1)`` for a rod hanging straight down.
+    ``e0_local=(0, 0, -1)`` for a rod hanging straight down. ``law``: the
+    force law of every leg (``HingedStrut``'s, ``"paper"`` or ``"potential"``).
 
     Returns
     -------
@@ -282,7 +283,7 @@ def symmetric_legs(count: int, radius: float, height: float, length: float, e0_l
         kwargs = {} if axial_ratio is None else {"axial_ratio": axial_ratio}
         legs.append(HingedStrut(hinge=radius * radial + height * up, e0=frame @ e0_local,
                                 en=frame @ en_local, length=length, S=S, M_beta=M_beta,
-                                M_gamma=M_gamma, **kwargs))
+                                M_gamma=M_gamma, law=law, **kwargs))
     return legs
 
 
@@ -398,8 +399,8 @@ def _elements(table: Table):
     return out
 
 
-_LEGS_KEYS = ("scheme", "count", "radius", "height", "length", "e0", "en", "azimuth0", "axial_ratio",
-              "S", "M_beta", "M_gamma")
+_LEGS_KEYS = ("scheme", "count", "radius", "height", "length", "e0", "en", "azimuth0",
+              "axial_ratio", "law", "S", "M_beta", "M_gamma")
 
 
 def _legs(top: Table) -> list:
@@ -417,6 +418,7 @@ def _legs(top: Table) -> list:
                     t.get("length", positive=True), t.get("e0", kind="vector", size=3),
                     t.get("en", kind="vector", size=3))
             els["azimuth0"] = t.get("azimuth0", 0.0)
+            els["law"] = t.get("law", "paper", kind="string", choices=LAWS)
             t.finish(known=_LEGS_KEYS)
             legs.append(_build(t, symmetric_legs, *args, **els))
     if top.has("leg"):
@@ -429,10 +431,11 @@ def _legs(top: Table) -> list:
             els = _elements(t)
             if t.has("axial_ratio"):
                 els["axial_ratio"] = t.get("axial_ratio", positive=True)
+            els["law"] = t.get("law", "paper", kind="string", choices=LAWS)
             args = (t.get("hinge", kind="vector", size=3), t.get("e0", kind="vector", size=3),
                     t.get("en", kind="vector", size=3), t.get("length", positive=True))
-            t.finish(known=("scheme", "hinge", "e0", "en", "length", "axial_ratio", "S",
-                            "M_beta", "M_gamma"))
+            t.finish(known=("scheme", "hinge", "e0", "en", "length", "axial_ratio", "law",
+                            "S", "M_beta", "M_gamma"))
             leg = _build(t, HingedStrut, *args, **els)
             legs.append(leg if leg is INVALID else [leg])
     top.used.update(("legs", "leg"))

@@ -26,6 +26,23 @@ the rate of the user's deflection γ − γ₀ is γ′ = −sign(e₀·e_n)(V·
 e₀·e_n > 0); (2.1)'s sign γ′ = sign(V·e_γ) is the rate in the direction of
 the moment M_γ, the same thing seen with the paper's orientation.
 
+Two force laws share these deflections, curves and signs (``law``):
+``"paper"`` is (2.1) as printed; ``"potential"`` is
+P = f_S ∇δ_S + f_β ∇β + f_γ ∇(γ − γ₀), the gradients of the deflections
+by ``casadi.jacobian``. The two differ only in the β term: ∇δ_S = e_S and
+∇(γ − γ₀) = −sign(e₀·e_n) e_γ/L exactly, but ∇β = c e_β/L with c = 1 only
+at β = 0, γ = γ₀ (docs/strut.md, "Energy"). For elastic curves the
+potential law is P = ∇U, U = Σ ∫f dx, and D_p is symmetric; (2.1) does
+work around a closed loop of the foot.
+
+The geometry (hinge, e₀, e_n, L₀) is either baked into the Functions as
+constants (``functions()``, the default) or read from the last
+:data:`GEOMETRY_SIZE` entries of ``p`` (``functions(geometry="input")``),
+so that one compiled step serves every geometry; e₀ and e_n are then
+normalised in the graph. The discrete choices stay the constructor's:
+the orientation sign σ = sign(e₀·e_n) and the singularity checks, which
+:meth:`HingedStrut.check_geometry` repeats for a geometry given in ``p``.
+
 An element that is absent contributes nothing, except the axial one: a strut
 given without ``S`` is an *axially rigid rod*, modelled as a stiff linear
 axial spring whose stiffness is ``axial_ratio`` times the bending stiffness
@@ -41,9 +58,22 @@ import numpy as np
 
 from . import absorber
 from .characteristics import Curve, Linear
+from .layout import LEG_GEOMETRY_FIELDS
 from .validation import direction, real, vector
 
-__all__ = ["HingedStrut", "RIGID_AXIAL_RATIO", "SINGULAR_ANGLE", "leg_geometry_expr"]
+__all__ = ["HingedStrut", "RIGID_AXIAL_RATIO", "SINGULAR_ANGLE", "LAWS", "GEOMETRY_MODES",
+           "GEOMETRY_SIZE", "leg_geometry_expr", "bound_geometry"]
+
+#: The force laws of a strut: ``"paper"``, (2.1) as printed; ``"potential"``,
+#: the gradient of the elements' deflections weighted by their forces.
+LAWS = ("paper", "potential")
+
+#: How the strut's Functions take its geometry: ``"constant"`` (baked in) or
+#: ``"input"`` (the last GEOMETRY_SIZE entries of ``p``).
+GEOMETRY_MODES = ("constant", "input")
+
+#: Entries of the geometry block of ``p``: hinge (3, m), e₀ (3), e_n (3), L₀ (m).
+GEOMETRY_SIZE = 10
 
 #: Axial stiffness of a "rigid" rod relative to its bending stiffness scale,
 #: k_S = ratio · max(M_β′, M_γ′)/L₀². The foot is massless, so the contact
@@ -70,6 +100,23 @@ def _unit(v):
     return v / ca.norm_2(v)
 
 
+def _check_angle(e0, en, where=""):
+    """cos(e₀, e_n) of unit vectors, or a ValueError if (2.1) is singular there."""
+    cos0 = float(e0 @ en)
+    angle = np.arccos(np.clip(abs(cos0), 0.0, 1.0))
+    if angle < SINGULAR_ANGLE:
+        raise ValueError(
+            f"{where}`e0` is parallel to `en` (angle {np.rad2deg(angle):.3g}° < "
+            f"{np.rad2deg(SINGULAR_ANGLE):g}°): e_β of (2.1) is undefined there; "
+            "tilt `en` away from the strut.")
+    if np.pi / 2 - angle < SINGULAR_ANGLE:
+        raise ValueError(
+            f"{where}`e0` is perpendicular to `en` (angle {np.rad2deg(angle):.4g}° from the "
+            "axis line): γ of (2.1) has a kink there (docs/paper-notes.md §2); tilt `en` so "
+            "that the strut makes an angle strictly between 0° and 90° with it.")
+    return cos0
+
+
 def leg_geometry_expr(r, r_h, e0, en):
     """Geometry of (2.1) as CasADi expressions of the foot position ``r``.
 
@@ -92,12 +139,13 @@ def leg_geometry_expr(r, r_h, e0, en):
 _ELEMENT_ORDER = ("S", "M_beta", "M_gamma")
 
 
-def memory_functions_of(leg) -> dict[str, ca.Function]:
+def memory_functions_of(leg, geometry: str = "constant") -> dict[str, ca.Function]:
     """The memory law's named Functions of any leg scheme with ``memory_force_expr``,
-    ``next_sets_expr``, ``free_foot_expr``, ``deflections_expr`` and ``param_names``."""
+    ``next_sets_expr``, ``free_foot_expr``, ``deflections_expr`` and ``_p_size``;
+    ``geometry="input"``: ``p`` ends with the leg's geometry block."""
     r, r_regime = ca.SX.sym("r", 3), ca.SX.sym("r_regime", 3)
     sets = ca.SX.sym("sets", 3)
-    p = ca.SX.sym("p", len(leg.param_names))
+    p = ca.SX.sym("p", leg._p_size(geometry))
     rate = ca.SX.sym("rate_gain"), ca.SX.sym("rate_offset", 3)
     P = leg.memory_force_expr(r, sets, p, rate=rate)
     Dp = ca.jacobian(leg.memory_force_expr(r, sets, p, r_regime, rate), r)
@@ -112,13 +160,28 @@ def memory_functions_of(leg) -> dict[str, ca.Function]:
         "strut_next_set": ca.Function("strut_next_set", [r, sets, p],
                                       [leg.next_sets_expr(r, sets, p)],
                                       ["r", "sets", "p"], ["next_set"]),
-        "strut_deflections": ca.Function("strut_deflections", [r], [leg.deflections_expr(r)],
-                                         ["r"], ["x"]),
+        "strut_deflections": ca.Function("strut_deflections", [r, p],
+                                         [leg.deflections_expr(r, p)], ["r", "p"], ["x"]),
         "strut_free_foot": ca.Function(
             "strut_free_foot", [sets, p, x0, rate0, dt],
             [leg.free_foot_expr(sets, p, x0, rate0, dt)],
             ["sets", "p", "deflection_start", "mean_rate", "dt"], ["r"]),
     }
+
+
+class bound_geometry:
+    """``strut_geometry(r, p)`` with its ``p`` bound: called, like the constant-geometry
+    Function, as ``f(r)`` or ``f.call(dict(r=...))``; the step binds each leg's slice
+    of its ``p`` (symcushion.touchdown)."""
+
+    def __init__(self, function: ca.Function, p):
+        self.function, self.p = function, p
+
+    def __call__(self, r):
+        return tuple(self.function(r, self.p))
+
+    def call(self, args: dict) -> dict:
+        return self.function.call(dict(args, p=self.p))
 
 
 @dataclass(frozen=True)
@@ -147,6 +210,10 @@ class HingedStrut:
         γ − γ₀ (N·m vs rad). ``S=None`` makes an axially rigid rod.
     axial_ratio : float
         Stiffness ratio of the rigid rod's axial spring (used when S is None).
+    law : {"paper", "potential"}
+        ``"paper"``: (2.1) as printed. ``"potential"``: P = f_S ∇δ_S + f_β ∇β
+        + f_γ ∇(γ − γ₀), the gradients by AD, the same deflections, curves and
+        signs; for elastic curves P = ∇U and D_p is symmetric (docs/strut.md).
 
     Examples
     --------
@@ -160,23 +227,16 @@ class HingedStrut:
 
     def __init__(self, hinge, e0, en, length, S: Optional[Curve] = None,
                  M_beta: Optional[Curve] = None, M_gamma: Optional[Curve] = None,
-                 axial_ratio: float = RIGID_AXIAL_RATIO):
+                 axial_ratio: float = RIGID_AXIAL_RATIO, law: str = "paper"):
+        if law not in LAWS:
+            raise ValueError(f"`law` must be one of {LAWS}, got {law!r}; \"paper\" is (2.1) as "
+                             "printed, \"potential\" its energy-consistent form.")
+        self.law = law
         self.hinge = _vector("hinge", hinge)
         self.e0 = _vector("e0", e0, unit=True)
         self.en = _vector("en", en, unit=True)
         self.length = real("length", length, positive=True, unit="m")
-        cos0 = float(self.e0 @ self.en)
-        angle = np.arccos(np.clip(abs(cos0), 0.0, 1.0))
-        if angle < SINGULAR_ANGLE:
-            raise ValueError(
-                f"`e0` is parallel to `en` (angle {np.rad2deg(angle):.3g}° < "
-                f"{np.rad2deg(SINGULAR_ANGLE):g}°): e_β of (2.1) is undefined there; "
-                "tilt `en` away from the strut.")
-        if np.pi / 2 - angle < SINGULAR_ANGLE:
-            raise ValueError(
-                f"`e0` is perpendicular to `en` (angle {np.rad2deg(angle):.4g}° from the "
-                "axis line): γ of (2.1) has a kink there (docs/paper-notes.md §2); tilt `en` so that the "
-                "strut makes an angle strictly between 0° and 90° with it.")
+        cos0 = _check_angle(self.e0, self.en)
         for name, curve in (("S", S), ("M_beta", M_beta), ("M_gamma", M_gamma)):
             if curve is not None and not isinstance(curve, Curve):
                 raise TypeError(f"`{name}` must be a characteristic curve such as Linear(1e4), "
@@ -204,8 +264,9 @@ class HingedStrut:
             if curve.tunable:
                 offset += curve.n_params
         self.elements = tuple(elements)
-        self._functions = None
-        self._memory_functions = None
+        self._functions = {}            # by geometry mode
+        self._memory_functions = {}
+        self._gradients = {}            # strut_deflection_gradients, by size of p
 
     # -- parameters -----------------------------------------------------------
     @property
@@ -221,34 +282,89 @@ class HingedStrut:
         return np.concatenate(vals) if vals else np.zeros(0)
 
     @property
+    def geometry_values(self) -> np.ndarray:
+        """The geometry block of ``p`` (shape (GEOMETRY_SIZE,)): hinge (m), e₀, e_n, L₀ (m)."""
+        return np.concatenate([self.hinge, self.e0, self.en, [self.length]])
+
+    @property
     def rest_foot(self) -> np.ndarray:
         """Foot position at the unloaded rest pose, r_h + L₀ e₀ (m)."""
         return self.hinge + self.length * self.e0
+
+    def rest_foot_expr(self, p):
+        """r_h + L₀ e₀ as a CasADi expression of ``p`` (constants without a geometry block)."""
+        G = self._geometry_of(p)
+        return G["hinge"] + G["length"] * G["e0"]
+
+    def check_geometry_block(self, block, where=""):
+        """:meth:`check_geometry` of the geometry block of ``p`` (hinge, e0, en, length)."""
+        block = np.asarray(block, dtype=float).ravel()
+        self.check_geometry(block[0:3], block[3:6], block[6:9], block[9], where=where)
+
+    def check_geometry(self, hinge, e0, en, length, where=""):
+        """Refuse a geometry (as the block of ``p`` holds it) this strut's Functions cannot take.
+
+        The constructor's checks (a positive length, e₀ at least
+        :data:`SINGULAR_ANGLE` from e_n and from the plane ⊥ e_n), and the
+        orientation sign: σ = sign(e₀·e_n) is fixed when the Functions are
+        built, so a geometry that flips it is refused. ``where`` prefixes
+        the message (e.g. ``"leg 2: "``).
+        """
+        vector(f"{where}hinge", hinge, (3,))
+        e0 = direction(f"{where}e0", e0)
+        en = direction(f"{where}en", en)
+        real(f"{where}length", length, positive=True, unit="m")
+        cos0 = _check_angle(e0, en, where)
+        if np.sign(cos0) != self.sigma:
+            raise ValueError(
+                f"{where}`e0`·`en` = {cos0:.3g} has the opposite sign to the built strut's "
+                f"({self.sigma:+g}): the orientation sign of M_γ is fixed in the compiled "
+                "Functions; flip `en` (the same polar axis) or build a model for this geometry.")
 
     def _theta(self, el: _Element, p):
         if el.curve.tunable:
             return p[el.offset:el.offset + el.curve.n_params]
         return None
 
+    def _geometry_of(self, p=None) -> dict:
+        """hinge, e0, en, length and γ₀: the strut's numbers, or, when ``p`` carries a
+        geometry block after the curve parameters, expressions of it (e₀, e_n normalised)."""
+        n = len(self.param_names)
+        if p is None or p.shape[0] == n:
+            return dict(hinge=ca.DM(self.hinge), e0=ca.DM(self.e0), en=ca.DM(self.en),
+                        length=self.length, gamma0=self.gamma0)
+        if p.shape[0] != n + GEOMETRY_SIZE:
+            raise ValueError(f"`p` must have {n} entries (curve parameters) or "
+                             f"{n + GEOMETRY_SIZE} (and the geometry), got {p.shape[0]}.")
+        e0, en = _unit(p[n + 3:n + 6]), _unit(p[n + 6:n + 9])
+        # γ(e₀), as in leg_geometry_expr
+        gamma0 = ca.atan2(ca.norm_2(ca.cross(e0, en)), ca.fabs(ca.dot(e0, en)))
+        return dict(hinge=p[n:n + 3], e0=e0, en=en, length=p[n + 9], gamma0=gamma0)
+
     # -- symbolic model ---------------------------------------------------------
-    def geometry(self, r):
-        """Geometry of (2.1) at foot position ``r`` (CasADi expression)."""
-        g = leg_geometry_expr(r, ca.DM(self.hinge), ca.DM(self.e0), ca.DM(self.en))
-        g["delta_S"] = g["L"] - self.length
+    def geometry(self, r, p=None):
+        """Geometry of (2.1) at foot position ``r`` (CasADi expression); the strut's own
+        geometry, or the one in ``p``'s geometry block."""
+        G = self._geometry_of(p)
+        g = leg_geometry_expr(r, G["hinge"], G["e0"], G["en"])
+        g["delta_S"] = g["L"] - G["length"]
+        g["gamma0"] = G["gamma0"]
         return g
 
     def rates(self, g, v):
         """Deflection rates of (S, M_β, M_γ) whose signs select the branches (2.1)."""
-        # β′ ≈ (V·e_β)/L, so that x·ẋ is in rad²/s like RATE_WIDTH says.
+        # β′ ≈ (V·e_β)/L, so that x·ẋ is in rad²/s like RATE_WIDTH says. The potential law
+        # uses the same rates: its exact β′ = ∇β·V differs by the factor c > 0 of its
+        # gradient (module docstring), which keeps the sign.
         return dict(S=ca.dot(v, g["e_S"]),
                     M_beta=ca.dot(v, g["e_beta"]) / g["L"],
                     M_gamma=-self.sigma * ca.dot(v, g["e_gamma"]) / g["L"])
 
     def _deflections(self, g):
-        return dict(S=g["delta_S"], M_beta=g["beta"], M_gamma=g["gamma"] - self.gamma0)
+        return dict(S=g["delta_S"], M_beta=g["beta"], M_gamma=g["gamma"] - g["gamma0"])
 
-    def element_forces(self, g, v, p, g_branch=None):
-        """S, M_β, M_γ of (2.1), with the orientation sign of M_γ applied.
+    def curve_forces(self, g, v, p, g_branch=None):
+        """f_S(δ_S), f_β(β), f_γ(γ − γ₀): the elements' curves at their deflections.
 
         ``g_branch`` (default ``g``): the geometry whose deflections and rates
         select the loading or unloading branch.
@@ -260,24 +376,56 @@ class HingedStrut:
         for el in self.elements:
             out[el.name] = el.curve.force(x[el.name], rate[el.name], self._theta(el, p),
                                           branch_x=x_branch[el.name])
+        return out
+
+    def element_forces(self, g, v, p, g_branch=None):
+        """S, M_β, M_γ of (2.1), with the orientation sign of M_γ applied.
+
+        ``g_branch`` (default ``g``): the geometry whose deflections and rates
+        select the loading or unloading branch.
+        """
+        out = self.curve_forces(g, v, p, g_branch)
         out["M_gamma"] = -self.sigma * out["M_gamma"]                  # docs/paper-notes.md §2
         return out
 
+    def deflection_gradients(self, r, p=None):
+        """∇δ_S, ∇β, ∇(γ − γ₀) at ``r`` (the rows of a 3×3 expression, 1/m or rad/m), by
+        ``casadi.jacobian`` of the deflections of (2.1)."""
+        n_p = 0 if p is None else p.shape[0]
+        if n_p not in self._gradients:
+            r_sym = ca.SX.sym("r", 3)
+            p_sym = ca.SX.sym("p", n_p)
+            x = self._deflections(self.geometry(r_sym, None if p is None else p_sym))
+            J = ca.jacobian(ca.vertcat(x["S"], x["M_beta"], x["M_gamma"]), r_sym)
+            self._gradients[n_p] = ca.Function("strut_deflection_gradients", [r_sym, p_sym],
+                                               [J], ["r", "p"], ["J"])
+        return self._gradients[n_p](r, ca.DM.zeros(0) if p is None else p)
+
+    def _assemble(self, g, f, r, p):
+        """P from the elements' curve forces ``f`` (f_γ without the orientation sign)."""
+        if self.law == "paper":
+            M_gamma = -self.sigma * f["M_gamma"]                       # docs/paper-notes.md §2
+            return (f["S"] * g["e_S"] + f["M_beta"] / g["L"] * g["e_beta"]
+                    + M_gamma / g["L"] * g["e_gamma"])                 # (2.1)
+        J = self.deflection_gradients(r, p)
+        return J.T @ ca.vertcat(f["S"], f["M_beta"], f["M_gamma"])     # P = Σ f ∇x = ∇U
+
     def force_expr(self, r, v, p, r_branch=None):
-        """P(r) of (2.1) as a CasADi expression (N).
+        """P(r) of the strut's law, (2.1) or its potential form, as a CasADi expression (N).
 
         ``r_branch`` (default ``r``): the foot position whose deflections and
         rates select the branches; the stiffness differentiates with it held.
+        A ``p`` with a geometry block after the curve parameters sets the geometry.
         """
-        g = self.geometry(r)
-        f = self.element_forces(g, v, p, None if r_branch is None else self.geometry(r_branch))
-        return (f["S"] * g["e_S"] + f["M_beta"] / g["L"] * g["e_beta"]
-                + f["M_gamma"] / g["L"] * g["e_gamma"])                # (2.1)
+        g = self.geometry(r, p)
+        f = self.curve_forces(g, v, p, None if r_branch is None else self.geometry(r_branch, p))
+        return self._assemble(g, f, r, p)
 
     def stiffness_paper_expr(self, r, v, p):
         """D_p from the hand formula (2.3), column by column (2.2)."""
-        g = self.geometry(r)
-        en, e0 = ca.DM(self.en), ca.DM(self.e0)
+        g = self.geometry(r, p)
+        G = self._geometry_of(p)
+        en, e0 = G["en"], G["e0"]
         L, e_S, e_beta, e_gamma = g["L"], g["e_S"], g["e_beta"], g["e_gamma"]
         x, rate = self._deflections(g), self.rates(g, v)
         f = self.element_forces(g, v, p)
@@ -323,16 +471,17 @@ class HingedStrut:
         return any((el.name == "S" and el.curve.has_memory) or el.curve.has_damper
                    for el in self.elements)
 
-    def deflections_expr(self, r):
-        """(δ_S, β, γ − γ₀): the elements' own deflections at foot ``r`` (m, rad)."""
-        x = self._deflections(self.geometry(r))
+    def deflections_expr(self, r, p=None):
+        """(δ_S, β, γ − γ₀): the elements' own deflections at foot ``r`` (m, rad), with
+        the geometry of ``p`` if it carries one."""
+        x = self._deflections(self.geometry(r, p))
         return ca.vertcat(x["S"], x["M_beta"], x["M_gamma"])
 
     def _axial(self) -> _Element:
         return next(el for el in self.elements if el.name == "S")
 
     def memory_force_expr(self, r, sets, p, r_regime=None, rate=None):
-        """P(r) of (2.1) with the elements on the memory law (A1) at ``sets``.
+        """P(r) of the strut's law with the elements on the memory law (A1) at ``sets``.
 
         ``sets`` (3): the sets of (S, M_β, M_γ); an element that keeps none
         takes its loading curve (the hinge springs, whose memory the scene
@@ -341,9 +490,9 @@ class HingedStrut:
         deflection rates of the dampers are a·x + b, the affine form of (A3),
         with x = (δ_S, β, γ − γ₀) and b of length 3.
         """
-        g = self.geometry(r)
+        g = self.geometry(r, p)
         x = self._deflections(g)
-        x_regime = None if r_regime is None else self._deflections(self.geometry(r_regime))
+        x_regime = None if r_regime is None else self._deflections(self.geometry(r_regime, p))
         forces = dict(S=0.0, M_beta=0.0, M_gamma=0.0)
         for el in self.elements:
             k = _ELEMENT_ORDER.index(el.name)
@@ -351,13 +500,11 @@ class HingedStrut:
                 el.curve, x[el.name], sets[k], self._theta(el, p),
                 None if x_regime is None else x_regime[el.name],
                 None if rate is None else rate[0] * x[el.name] + rate[1][k])
-        forces["M_gamma"] = -self.sigma * forces["M_gamma"]            # docs/paper-notes.md §2
-        return (forces["S"] * g["e_S"] + forces["M_beta"] / g["L"] * g["e_beta"]
-                + forces["M_gamma"] / g["L"] * g["e_gamma"])           # (2.1)
+        return self._assemble(g, forces, r, p)
 
     def next_sets_expr(self, r, sets, p):
         """The sets after the foot reached ``r`` (A2), in the order (S, M_β, M_γ)."""
-        x = self._deflections(self.geometry(r))
+        x = self._deflections(self.geometry(r, p))
         out = [sets[k] for k in range(3)]
         for el in self.elements:
             k = _ELEMENT_ORDER.index(el.name)
@@ -371,9 +518,10 @@ class HingedStrut:
         el = self._axial()
         free = absorber.relaxed_deflection(el.curve, x_start[0], sets[0], mean_rate[0], dt,
                                            self._theta(el, p))
-        return ca.DM(self.hinge) + (self.length + free) * ca.DM(self.e0)
+        G = self._geometry_of(p)
+        return G["hinge"] + (G["length"] + free) * G["e0"]
 
-    def memory_functions(self) -> dict[str, ca.Function]:
+    def memory_functions(self, geometry: str = "constant") -> dict[str, ca.Function]:
         """The named Functions of the memory law (A1)-(A4) for a leg that keeps a set
         or has a damper (``axial_state``); built once, cached. Shared by every leg
         scheme (docs/tripod.md, "Leg schemes"): ``sets``, ``rate_offset``,
@@ -385,15 +533,17 @@ class HingedStrut:
         included), ``strut_next_set(r, sets, p) -> next_set`` (A2),
         ``strut_free_foot(sets, p, deflection_start, mean_rate, dt) -> r`` (a
         free foot at the end of a step, body frame, (A4)) and
-        ``strut_deflections(r) -> x`` (each element's deflection).
+        ``strut_deflections(r, p) -> x`` (each element's deflection).
+        ``geometry="input"``: ``p`` ends with the geometry block, as in
+        :meth:`functions`.
         """
         if not self.axial_state:
             raise ValueError("this leg's elements keep no state (a crushable element, "
                              "one with an unloading curve, or a damped one does); use "
                              "`functions()`.")
-        if self._memory_functions is None:
-            self._memory_functions = memory_functions_of(self)
-        return self._memory_functions
+        if geometry not in self._memory_functions:
+            self._memory_functions[geometry] = memory_functions_of(self, geometry)
+        return self._memory_functions[geometry]
 
     def loading_set(self, r, p=None) -> float:
         """The axial set of a foot at ``r`` reached along the loading curve (A2)."""
@@ -403,19 +553,33 @@ class HingedStrut:
         return float(ca.evalf(absorber.set_on_loading(el.curve, delta_S, theta)))
 
     # -- Functions --------------------------------------------------------------
-    def functions(self) -> dict[str, ca.Function]:
-        """The named CasADi Functions of this strut (built once, cached).
+    def _p_size(self, geometry: str) -> int:
+        if geometry not in GEOMETRY_MODES:
+            raise ValueError(f"`geometry` must be one of {GEOMETRY_MODES}, got {geometry!r}.")
+        return len(self.param_names) + (GEOMETRY_SIZE if geometry == "input" else 0)
+
+    def functions(self, geometry: str = "constant") -> dict[str, ca.Function]:
+        """The named CasADi Functions of this strut (built once per ``geometry``, cached).
+
+        Parameters
+        ----------
+        geometry : {"constant", "input"}
+            ``"constant"``: the strut's geometry is baked in and ``p`` holds the
+            tunable curve parameters (``param_names``), empty when all curves
+            are numeric. ``"input"``: ``p`` holds those followed by the
+            geometry block (:attr:`geometry_values`: hinge (m), e₀, e_n, L₀ (m);
+            e₀ and e_n need not be unit), and ``strut_geometry`` takes ``p`` too.
 
         Returns
         -------
         dict
             ``strut_force(r, v, p) -> P``, ``strut_stiffness(r, v, p) -> Dp``
-            (``casadi.jacobian``), ``strut_stiffness_paper(r, v, p) -> Dp``
-            ((2.3) by hand) and ``strut_geometry(r) -> L, delta_S, beta, gamma,
-            e_S, e_beta, e_gamma``. ``r``: foot position (3, m, body frame);
+            (``casadi.jacobian``), with the paper law ``strut_stiffness_paper(r,
+            v, p) -> Dp`` ((2.3) by hand, for (2.1) only), and
+            ``strut_geometry(r[, p]) -> L, delta_S, beta, gamma, e_S, e_beta,
+            e_gamma, gamma_deflection``. ``r``: foot position (3, m, body frame);
             ``v``: foot velocity relative to the hinge (3, m/s; selects the
-            branches); ``p``: tunable parameters (``param_names``), empty when
-            all curves are numeric.
+            branches).
 
         Notes
         -----
@@ -424,11 +588,12 @@ class HingedStrut:
         check. The Python boundary (:meth:`force`, :meth:`stiffness`) rejects
         a foot within 1e-9 L₀ of the hinge with a ValueError, and
         ``symcushion.checks.RunMonitor`` reports a non-finite state in a run.
+        A geometry in ``p`` is not checked either: :meth:`check_geometry` does.
         """
-        if self._functions is None:
+        if geometry not in self._functions:
             r = ca.SX.sym("r", 3)
             v = ca.SX.sym("v", 3)
-            p = ca.SX.sym("p", len(self.param_names))
+            p = ca.SX.sym("p", self._p_size(geometry))
             P = self.force_expr(r, v, p)
             # D_p = ∂P/∂r with the branches held (the active branch's slope, as
             # in (2.3)): with smooth curves the branch weight w(x·ẋ) also
@@ -436,27 +601,33 @@ class HingedStrut:
             # not a stiffness — it can make D_p indefinite at touchdown.
             r_branch = ca.SX.sym("r_branch", 3)
             Dp = ca.substitute(ca.jacobian(self.force_expr(r, v, p, r_branch), r), r_branch, r)
-            Dp_paper = self.stiffness_paper_expr(r, v, p)
-            g = self.geometry(r)
+            g = self.geometry(r, p)
             names_in = ["r", "v", "p"]
-            self._functions = {
+            geo_in, geo_names = ([r], ["r"]) if geometry == "constant" else ([r, p], ["r", "p"])
+            fns = {
                 "strut_force": ca.Function("strut_force", [r, v, p], [P], names_in, ["P"]),
                 "strut_stiffness": ca.Function("strut_stiffness", [r, v, p], [Dp],
                                                names_in, ["Dp"]),
-                "strut_stiffness_paper": ca.Function("strut_stiffness_paper", [r, v, p],
-                                                     [Dp_paper], names_in, ["Dp"]),
                 "strut_geometry": ca.Function(
-                    "strut_geometry", [r],
+                    "strut_geometry", geo_in,
                     [g["L"], g["delta_S"], g["beta"], g["gamma"], g["e_S"], g["e_beta"],
-                     g["e_gamma"]],
-                    ["r"], ["L", "delta_S", "beta", "gamma", "e_S", "e_beta", "e_gamma"]),
+                     g["e_gamma"], g["gamma"] - g["gamma0"]],
+                    geo_names, ["L", "delta_S", "beta", "gamma", "e_S", "e_beta", "e_gamma",
+                                "gamma_deflection"]),
             }
-        return self._functions
+            if self.law == "paper":
+                fns["strut_stiffness_paper"] = ca.Function(
+                    "strut_stiffness_paper", [r, v, p], [self.stiffness_paper_expr(r, v, p)],
+                    names_in, ["Dp"])
+            self._functions[geometry] = fns
+        return self._functions[geometry]
 
     # -- the leg-scheme interface (docs/tripod.md, "Leg schemes") ---------------------
     #: The axial element: its stroke is the leg's ``stroke`` output and its curve's
     #: stroke limit the one the run's bottoming check reads.
     axial_element = "S"
+    #: The fields of the strut's geometry block in ``p`` (``symcushion.layout``).
+    geometry_fields = LEG_GEOMETRY_FIELDS
     #: Which elements' deflections a free foot relaxes over a step (A4); the hinge
     #: angles return to rest at once.
     relaxes_free = (1.0, 0.0, 0.0)
@@ -464,7 +635,7 @@ class HingedStrut:
     def deflections(self, geo) -> dict:
         """Each element's own deflection from ``strut_geometry``'s outputs ``geo``:
         δ_S (m), β and γ − γ₀ (rad)."""
-        return {"S": geo["delta_S"], "M_beta": geo["beta"], "M_gamma": geo["gamma"] - self.gamma0}
+        return {"S": geo["delta_S"], "M_beta": geo["beta"], "M_gamma": geo["gamma_deflection"]}
 
     def deflection_outputs(self, geo) -> dict:
         """The per-leg output fields of the deflections (``symcushion.layout``)."""
@@ -494,12 +665,15 @@ class HingedStrut:
         return p
 
     def force(self, r, v=(0.0, 0.0, 0.0), p=None) -> np.ndarray:
-        """P(r) of (2.1) as a NumPy array (N); validates its inputs."""
+        """P(r) of the strut's law as a NumPy array (N); validates its inputs."""
         out = self.functions()["strut_force"](self._check_r(r), _vector("v", v), self._p(p))
         return np.asarray(out, dtype=float).ravel()
 
     def stiffness(self, r, v=(0.0, 0.0, 0.0), p=None, *, paper=False) -> np.ndarray:
-        """D_p = ∂P/∂r (3×3, N/m) by AD, or by (2.3) with ``paper=True``."""
+        """D_p = ∂P/∂r (3×3, N/m) by AD, or by (2.3) with ``paper=True`` (paper law only)."""
+        if paper and self.law != "paper":
+            raise ValueError("`paper=True` asks for the hand formula (2.3) of (2.1); this strut "
+                             f"has law = {self.law!r}, whose D_p is only by AD; drop `paper`.")
         name = "strut_stiffness_paper" if paper else "strut_stiffness"
         out = self.functions()[name](self._check_r(r), _vector("v", v), self._p(p))
         return np.asarray(out, dtype=float)

@@ -84,6 +84,7 @@ from .layout import (BODY_OUT, BODY_STATE, LEG_OUT, LEG_STATE, MODES, ParamLayou
                      quat_to_rot_np, state_layout)
 from .obstacles import closest_obstacle
 from .scene import Scene
+from .strut import GEOMETRY_MODES, bound_geometry
 from .stroke_lock import (LOCKED, UNLOADING, any_of, axial_branches, bending_force, inside_cone,
                           newton_masked, skip_unless, solve_masked, stroke_acceleration,
                           stroke_rate)
@@ -118,7 +119,9 @@ class StepModel:
     param_names : tuple of str
         Names of ``p``: ``leg{j}.{element}.{name}`` for the legs' curve
         parameters, then the scene's ``mu`` (friction scenes only),
-        ``gravity.x/y/z``, ``mass`` and ``inertia.xx/yy/zz/xy/xz/yz``
+        ``gravity.x/y/z``, ``mass`` and ``inertia.xx/yy/zz/xy/xz/yz``, then
+        (geometry as inputs, the default) each leg's ``leg{j}.hinge.x/y/z``,
+        ``leg{j}.e0.x/y/z``, ``leg{j}.en.x/y/z`` and ``leg{j}.length``
         (:class:`~symcushion.layout.ParamLayout`).
     params : ParamLayout
         The layout of ``p`` (read and write its entries by name).
@@ -167,13 +170,29 @@ class StepModel:
     @property
     def default_p(self) -> np.ndarray:
         """The scene's values of ``p`` (shape (np,))."""
-        return default_p(self.scene)
+        return default_p(self.scene, self.params is None or self.params.geometry)
 
     def pack_params(self, base=None, **overrides) -> np.ndarray:
-        """``p`` with named scene entries replaced (``mu=``, ``gravity=``, ``mass=``,
-        ``inertia=``); ``base`` defaults to :attr:`default_p`. A frictionless scene
-        has no ``mu`` entry and refuses one."""
-        return self.params.pack(self.default_p if base is None else base, **overrides)
+        """``p`` with named entries replaced: the scene's (``mu=``, ``gravity=``,
+        ``mass=``, ``inertia=``) and the legs' geometry (``**{"leg0.hinge": (…),
+        "leg0.e0": (…), "leg0.en": (…), "leg0.length": …}``); ``base`` defaults to
+        :attr:`default_p`. A frictionless scene has no ``mu`` entry and refuses
+        one; a geometry the legs' built Functions cannot take is refused
+        (:meth:`check_params`)."""
+        p = self.params.pack(self.default_p if base is None else base, **overrides)
+        self.check_params(p)
+        return p
+
+    def check_params(self, p) -> None:
+        """Refuse a ``p`` whose leg geometry the built step cannot take: a length ≤ 0,
+        a zero direction, e₀ within 1° of e_n or of the plane ⊥ e_n, or a flipped
+        sign(e₀·e_n) (``HingedStrut.check_geometry``). Nothing to check when the
+        geometry is baked in."""
+        if self.params is None or not self.params.geometry:
+            return
+        p = np.asarray(p, dtype=float).ravel()
+        for j, leg in enumerate(self.scene.legs):
+            leg.check_geometry_block(self.params.leg_geometry(p, j), where=f"`p` of leg {j}: ")
 
     @property
     def n_legs(self):
@@ -187,9 +206,9 @@ class StepModel:
                 "gated": sum(f.n_instructions() for f in self.gated.values())}
 
 
-def _leg_params(scene: Scene):
+def _leg_params(scene: Scene, geometry: bool = True):
     """Names of ``p`` and each leg's (start, stop) range of curve parameters."""
-    lay = param_layout(scene)
+    lay = param_layout(scene, geometry)
     return lay.names, [(sl.start, sl.stop) for sl in lay._legs]
 
 
@@ -228,22 +247,30 @@ def _memory_leg_input(leg, fns, p_leg, foot, rho0, h) -> LegInput:
     relaxed to, at the end where it relaxes to over the step (symcushion.absorber)."""
     sets = ca.vertcat(foot["stroke_set"], foot["element_set"])
     chords = ca.vertcat(foot["stroke_chord"], foot["element_chord"])
-    rest = fns["strut_free_foot"](sets, p_leg, fns["strut_deflections"](rho0), chords, h)
+    rest = fns["strut_free_foot"](sets, p_leg, fns["strut_deflections"](rho0, p_leg), chords, h)
     return LegInput(strut=leg, fns=fns, p_leg=p_leg, rest=rest, foot=foot, rho0=rho0,
                     sets=sets, chords=chords, rest_start=rho0)
 
 
-def build_model(scene: Scene) -> StepModel:
+def build_model(scene: Scene, geometry: str = "input") -> StepModel:
     """Build the ``touchdown_step`` Function of a scene.
 
     Only what the scene needs is built: a leg's absent elements add nothing,
     μ = 0 builds the frictionless contact step, and only the scene's
-    obstacles are in the graph.
+    obstacles are in the graph. ``geometry="input"`` (default): the legs'
+    hinges, rest directions, polar axes and lengths are entries of ``p``
+    (the scene's as defaults), so one step serves every geometry with the
+    same discrete choices (the scene's orientation signs sign(e₀·e_n), which
+    :meth:`StepModel.check_params` enforces); ``"constant"``: they are baked
+    into the graph.
     """
+    if geometry not in GEOMETRY_MODES:
+        raise ValueError(f"`geometry` must be one of {GEOMETRY_MODES}, got {geometry!r}.")
     legs = scene.legs
     n_legs = len(legs)
-    params = param_layout(scene)
-    names, offsets = _leg_params(scene)
+    inputs = geometry == "input"
+    params = param_layout(scene, inputs)
+    names = params.names
     xl, yl = state_layout(n_legs), output_layout(n_legs)
     nx, ny = xl.size, yl.size
 
@@ -267,10 +294,16 @@ def build_model(scene: Scene) -> StepModel:
     # the legs on the memory law (symcushion.absorber): their unloaded foot is where the
     # axial element's set leaves it
     memory = [scene.hysteresis == "memory" and leg.axial_state for leg in legs]
-    fns_of = [dict(leg.functions(), **(leg.memory_functions() if mem else {}))
+    fns_of = [dict(leg.functions(geometry), **(leg.memory_functions(geometry) if mem else {}))
               for leg, mem in zip(legs, memory)]
-    p_of = [p[o[0]:o[1]] for o in offsets]
-    rest = [ca.DM(leg.rest_foot) for leg in legs]
+    p_of = [params.leg_inputs(p, j) for j in range(n_legs)]
+    if inputs:
+        # each leg's geometry is its slice of p: bind it to strut_geometry(r, p), which
+        # the contact code calls as strut_geometry(r)
+        for fns, p_leg in zip(fns_of, p_of):
+            fns["strut_geometry"] = bound_geometry(fns["strut_geometry"], p_leg)
+    rest = [leg.rest_foot_expr(p_leg) if inputs else ca.DM(leg.rest_foot)
+            for leg, p_leg in zip(legs, p_of)]
 
     R = quat_to_rot(quat)
 
@@ -579,16 +612,42 @@ def build_model(scene: Scene) -> StepModel:
 # ---------------------------------------------------------------------------
 # states
 # ---------------------------------------------------------------------------
-def initial_state(scene: Scene) -> np.ndarray:
-    """State vector of the scene's initial conditions, all feet free."""
+def initial_state(scene: Scene, p=None) -> np.ndarray:
+    """State vector of the scene's initial conditions, all feet free; with ``p`` (a
+    step's parameters) the feet at the rest poses of its leg geometry."""
     b = scene.body
     R = _rot_np(b.attitude)
     n = len(scene.legs)
+    _, _, rest = _legs_at(scene, p)
     return state_layout(n).pack(
         position=b.position, velocity=b.velocity, attitude=b.attitude,
         angular_velocity=b.angular_velocity,
-        foot=[b.position + R @ leg.rest_foot for leg in scene.legs], contact=[0.0] * n,
+        foot=[b.position + R @ r for r in rest], contact=[0.0] * n,
         force_body=[np.zeros(3)] * n)
+
+
+def _legs_at(scene: Scene, p=None):
+    """(Functions, p, rest foot) of every leg for a step's ``p``: with its geometry
+    block when ``p`` has one, else (and for None) the scene's own geometry."""
+    with_geometry = param_layout(scene, True)
+    if p is None:
+        p = default_p(scene, geometry=False)
+    p = np.asarray(p, dtype=float).ravel()
+    lay = with_geometry if p.size == with_geometry.size else param_layout(scene, False)
+    if p.size != lay.size:
+        raise ValueError(f"`p` must have {with_geometry.size} entries {with_geometry.names} "
+                         f"(or {lay.size} without the legs' geometry), got {p.size}.")
+    mode = "input" if lay.geometry else "constant"
+    fns = [leg.functions(mode) for leg in scene.legs]
+    p_legs = [lay.leg_inputs(p, j) for j in range(len(scene.legs))]
+    if lay.geometry:
+        for j, leg in enumerate(scene.legs):
+            leg.check_geometry_block(lay.leg_geometry(p, j), where=f"`p` of leg {j}: ")
+        rest = [np.asarray(ca.evalf(leg.rest_foot_expr(ca.DM(p_leg))), dtype=float).ravel()
+                for leg, p_leg in zip(scene.legs, p_legs)]
+    else:
+        rest = [leg.rest_foot for leg in scene.legs]
+    return fns, p_legs, rest
 
 
 def _rot_np(q):
@@ -633,15 +692,14 @@ def equilibrium_state(scene: Scene, acceleration=(0.0, 0.0, 0.0), p=None,
         raise ValueError(f"`placement` must be 'gravity' or 'nearest', got {placement!r}.")
     pts = []
     down = scene.gravity / np.linalg.norm(scene.gravity)
-    for leg in scene.legs:
-        free = b.position + R0 @ leg.rest_foot
+    fns, p_legs, rest = _legs_at(scene, p)
+    for rest_j in rest:
+        free = b.position + R0 @ rest_j
         if placement == "gravity":
             pts.append(_drop_point(scene.obstacles, free, down))
         else:
             _, _, proj = closest_obstacle(scene.obstacles, ca.DM(free))
             pts.append(np.asarray(ca.evalf(proj)).ravel())
-    names, offsets = _leg_params(scene)
-    p = _default_p(scene) if p is None else np.asarray(p, dtype=float)
     z = ca.SX.sym("z", 6 if solve_attitude else 3)
     x = z[0:3]
     q = ca.DM(b.attitude)
@@ -652,7 +710,7 @@ def equilibrium_state(scene: Scene, acceleration=(0.0, 0.0, 0.0), p=None,
     torque = ca.DM.zeros(3)
     for j, (leg, pt) in enumerate(zip(scene.legs, pts)):
         rho = R.T @ (ca.DM(pt) - x)
-        P = leg.functions()["strut_force"](rho, ca.DM.zeros(3), p[offsets[j][0]:offsets[j][1]])
+        P = fns[j]["strut_force"](rho, ca.DM.zeros(3), p_legs[j])
         total = total + R @ P
         torque = torque + ca.cross(rho, P)
     residual = total + b.mass * (ca.DM(scene.gravity) - ca.DM(a))
@@ -668,11 +726,11 @@ def equilibrium_state(scene: Scene, acceleration=(0.0, 0.0, 0.0), p=None,
     forces = []
     for j, (leg, pt) in enumerate(zip(scene.legs, pts)):
         rho = R.T @ (pt - pos)
-        forces.append(np.asarray(leg.functions()["strut_force"](
-            rho, np.zeros(3), p[offsets[j][0]:offsets[j][1]])).ravel())
+        forces.append(np.asarray(fns[j]["strut_force"](rho, np.zeros(3), p_legs[j])).ravel())
     return state_layout(len(scene.legs)).pack(
         position=pos, velocity=np.zeros(3), attitude=quat, angular_velocity=np.zeros(3),
         foot=pts, contact=[1.0] * len(pts), force_body=forces)
+
 
 
 def _default_p(scene):

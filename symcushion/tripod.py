@@ -44,6 +44,7 @@ import numpy as np
 
 from . import absorber
 from .characteristics import Curve
+from .layout import TRIPOD_GEOMETRY_FIELDS
 from .strut import memory_functions_of
 from .validation import real, vector
 
@@ -62,6 +63,9 @@ SINGULAR_ANGLE = np.deg2rad(5.0)
 #: deflections of a free leg are its sets, millimetres from the rest foot, where
 #: q(r) is nearly linear; three steps take the residual to round-off.
 FREE_FOOT_NEWTON_STEPS = 3
+
+#: Entries of a tripod's geometry block in ``p``: h₁, h₂, h₃, the rest foot, ℓ_o.
+GEOMETRY_SIZE = 13
 
 #: Element names, in the order of q, f and ``p``.
 ELEMENTS = ("primary", "secondary2", "secondary3")
@@ -185,8 +189,8 @@ class InvertedTripod:
         self.elements = tuple(elements)
         self.rest_lengths = np.asarray(ca.evalf(tripod_rest_lengths(*self._dm_geometry(
             ca.DM(self.foot))))).ravel()
-        self._functions = None
-        self._memory_functions = None
+        self._functions = {}            # by geometry mode
+        self._memory_functions = {}
 
     # -- interface shared with HingedStrut ---------------------------------------
     hinge = property(lambda self: self.h1, doc="The primary's joint h₁ (m).")
@@ -295,11 +299,57 @@ class InvertedTripod:
     def _dm_geometry(self, r):
         return (r, ca.DM(self.h1), ca.DM(self.h2), ca.DM(self.h3), self.outer_length)
 
-    def geometry(self, r):
+    # -- geometry as inputs (symcushion.layout.TRIPOD_GEOMETRY_FIELDS) -----------------
+    geometry_fields = TRIPOD_GEOMETRY_FIELDS
+
+    @property
+    def geometry_values(self) -> np.ndarray:
+        """The geometry block of ``p`` (13): h₁, h₂, h₃, the rest foot (m) and ℓ_o (m)."""
+        return np.concatenate([self.h1, self.h2, self.h3, self.foot, [self.outer_length]])
+
+    def _p_size(self, geometry: str) -> int:
+        if geometry not in ("constant", "input"):
+            raise ValueError(f"`geometry` must be 'constant' or 'input', got {geometry!r}.")
+        return len(self.param_names) + (GEOMETRY_SIZE if geometry == "input" else 0)
+
+    def _geometry_of(self, p=None) -> dict:
+        """h1, h2, h3, foot, outer_length and the rest lengths: the leg's numbers, or
+        expressions of the geometry block when ``p`` carries one after the curves'."""
+        n = len(self.param_names)
+        if p is None or p.shape[0] == n:
+            return dict(h1=ca.DM(self.h1), h2=ca.DM(self.h2), h3=ca.DM(self.h3),
+                        foot=ca.DM(self.foot), outer_length=self.outer_length,
+                        rest_lengths=ca.DM(self.rest_lengths))
+        if p.shape[0] != n + GEOMETRY_SIZE:
+            raise ValueError(f"`p` must have {n} entries (curve parameters) or "
+                             f"{n + GEOMETRY_SIZE} (and the geometry), got {p.shape[0]}.")
+        G = dict(h1=p[n:n + 3], h2=p[n + 3:n + 6], h3=p[n + 6:n + 9], foot=p[n + 9:n + 12],
+                 outer_length=p[n + 12])
+        G["rest_lengths"] = tripod_rest_lengths(G["foot"], G["h1"], G["h2"], G["h3"],
+                                                G["outer_length"])
+        return G
+
+    def rest_foot_expr(self, p):
+        """The rest foot as a CasADi expression of ``p`` (a constant without a block)."""
+        return self._geometry_of(p)["foot"]
+
+    def check_geometry_block(self, block, where=""):
+        """Refuse a geometry block of ``p`` the leg's Functions cannot take: the
+        constructor's checks (finite points, 0 < ℓ_o < L₀, no singular rest pose)."""
+        block = np.asarray(block, dtype=float).ravel()
+        try:
+            InvertedTripod(block[0:3], block[3:6], block[6:9], block[9:12], block[12],
+                           *(el.curve for el in self.elements))
+        except (ValueError, TypeError) as exc:
+            raise ValueError(f"{where}{exc}") from None
+
+    def geometry(self, r, p=None):
         """Geometry at foot position ``r`` (CasADi): :func:`tripod_geometry_expr`
-        plus ``q`` (3), ``delta_S`` and ``stroke_secondary`` (2), in m."""
-        g = tripod_geometry_expr(*self._dm_geometry(r))
-        g["q"] = tripod_deflections(g, ca.DM(self.rest_lengths))
+        plus ``q`` (3), ``delta_S`` and ``stroke_secondary`` (2), in m; the leg's own
+        geometry, or the one in ``p``'s geometry block."""
+        G = self._geometry_of(p)
+        g = tripod_geometry_expr(r, G["h1"], G["h2"], G["h3"], G["outer_length"])
+        g["q"] = tripod_deflections(g, G["rest_lengths"])
         g["delta_S"], g["stroke_secondary"] = g["q"][0], g["q"][1:]
         return g
 
@@ -313,9 +363,9 @@ class InvertedTripod:
         q̇ = J(r_branch) v and the deflection at ``r_branch`` select the
         loading or unloading branch.
         """
-        q = self.geometry(r)["q"]
+        q = self.geometry(r, p)["q"]
         r_branch = r if r_branch is None else r_branch
-        q_branch = self.geometry(r_branch)["q"]
+        q_branch = self.geometry(r_branch, p)["q"]
         rate = ca.jacobian(q_branch, r_branch) @ v
         return ca.vertcat(*[el.curve.force(q[i], rate[i], self._theta(el, p),
                                            branch_x=q_branch[i])
@@ -326,20 +376,20 @@ class InvertedTripod:
 
         ``r`` must be a CasADi symbol (J = ∂q/∂r is taken by ``casadi.jacobian``).
         """
-        J = ca.jacobian(self.geometry(r)["q"], r)
+        J = ca.jacobian(self.geometry(r, p)["q"], r)
         return J.T @ self.element_forces(r, v, p, r_branch)            # (T1)
 
     # -- the memory law (symcushion.absorber) ---------------------------------------
-    def deflections_expr(self, r):
-        """q = (δ_S, δ₂, δ₃) at foot ``r`` (m)."""
-        return self.geometry(r)["q"]
+    def deflections_expr(self, r, p=None):
+        """q = (δ_S, δ₂, δ₃) at foot ``r`` (m), with the geometry of ``p`` if it has one."""
+        return self.geometry(r, p)["q"]
 
     def memory_force_expr(self, r, sets, p, r_regime=None, rate=None):
         """P = J(r)ᵀ f (T1) with the elements on the memory law (A1) at ``sets`` (3);
         ``r_regime`` picks each element's regime, ``rate`` = (a, b) the dampers'
         rates a·q + b (A3)."""
-        q = self.geometry(r)["q"]
-        q_regime = None if r_regime is None else self.geometry(r_regime)["q"]
+        q = self.geometry(r, p)["q"]
+        q_regime = None if r_regime is None else self.geometry(r_regime, p)["q"]
         f = ca.vertcat(*[absorber.element_force(
             el.curve, q[i], sets[i], self._theta(el, p),
             None if q_regime is None else q_regime[i],
@@ -349,7 +399,7 @@ class InvertedTripod:
 
     def next_sets_expr(self, r, sets, p):
         """The elements' sets after the foot reached ``r`` (A2)."""
-        q = self.geometry(r)["q"]
+        q = self.geometry(r, p)["q"]
         return ca.vertcat(*[absorber.element_next_set(el.curve, q[i], sets[i],
                                                       self._theta(el, p))
                             for i, el in enumerate(self.elements)])
@@ -362,27 +412,29 @@ class InvertedTripod:
             el.curve, x_start[i], sets[i], mean_rate[i], dt, self._theta(el, p))
             for i, el in enumerate(self.elements)])
         r = ca.SX.sym("r", 3)
-        q = self.geometry(r)["q"]
-        newton = ca.Function("tripod_free_newton", [r, target_sym := ca.SX.sym("q", 3)],
-                             [r - ca.solve(ca.jacobian(q, r), q - target_sym)])
-        foot = ca.DM(self.foot)
+        q = self.geometry(r, p)["q"]
+        newton = r - ca.solve(ca.jacobian(q, r), q - target)
+        foot = self._geometry_of(p)["foot"]
         for _ in range(FREE_FOOT_NEWTON_STEPS):
-            foot = newton(foot, target)
+            foot = ca.substitute(newton, r, foot)
         return foot
 
-    def memory_functions(self) -> dict[str, ca.Function]:
+    def memory_functions(self, geometry: str = "constant") -> dict[str, ca.Function]:
         """The memory law's named Functions, as ``HingedStrut.memory_functions``."""
         if not self.axial_state:
             raise ValueError("this leg's elements keep no state (a crushable element, "
                              "one with an unloading curve, or a damped one does); use "
                              "`functions()`.")
-        if self._memory_functions is None:
-            self._memory_functions = memory_functions_of(self)
-        return self._memory_functions
+        if geometry not in self._memory_functions:
+            self._memory_functions[geometry] = memory_functions_of(self, geometry)
+        return self._memory_functions[geometry]
 
     # -- Functions --------------------------------------------------------------
-    def functions(self) -> dict[str, ca.Function]:
-        """The named CasADi Functions of this leg (built once, cached).
+    def functions(self, geometry: str = "constant") -> dict[str, ca.Function]:
+        """The named CasADi Functions of this leg (built once per ``geometry``, cached).
+
+        ``geometry="input"``: ``p`` ends with the geometry block
+        (:attr:`geometry_values`) and the geometry Functions take ``p`` too.
 
         Returns
         -------
@@ -403,15 +455,15 @@ class InvertedTripod:
         At r = h₁ or with a secondary of zero length these raw Functions
         return NaN; :meth:`force` and :meth:`stiffness` check their inputs.
         """
-        if self._functions is None:
-            self._functions = self._build_functions()
-        return self._functions
+        if geometry not in self._functions:
+            self._functions[geometry] = self._build_functions(geometry)
+        return self._functions[geometry]
 
-    def _build_functions(self):
+    def _build_functions(self, geometry):
         r, v = ca.SX.sym("r", 3), ca.SX.sym("v", 3)
-        p = ca.SX.sym("p", len(self.param_names))
+        p = ca.SX.sym("p", self._p_size(geometry))
         r_branch = ca.SX.sym("r_branch", 3)
-        g = self.geometry(r)
+        g = self.geometry(r, p)
         f = self.element_forces(r, v, p)
         P = self.force_expr(r, v, p)
         # ∂P/∂r with the branch test frozen at r_branch, as HingedStrut does:
@@ -420,10 +472,11 @@ class InvertedTripod:
         geo_out = [g["L"], g["delta_S"], g["e_S"], g["Q"], g["stroke_secondary"]]
         geo_names = ["L", "delta_S", "e_S", "Q", "stroke_secondary"]
         names_in = ["r", "v", "p"]
+        geo_in, geo_in_names = ([r], ["r"]) if geometry == "constant" else ([r, p], ["r", "p"])
         out = {}
         for prefix in ("tripod", "strut"):
-            out[f"{prefix}_geometry"] = ca.Function(f"{prefix}_geometry", [r], geo_out,
-                                                    ["r"], geo_names)
+            out[f"{prefix}_geometry"] = ca.Function(f"{prefix}_geometry", geo_in, geo_out,
+                                                    geo_in_names, geo_names)
             out[f"{prefix}_force"] = ca.Function(f"{prefix}_force", [r, v, p], [P],
                                                  names_in, ["P"])
             out[f"{prefix}_stiffness"] = ca.Function(f"{prefix}_stiffness", [r, v, p], [Dp],

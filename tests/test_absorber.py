@@ -429,7 +429,7 @@ def test_a_hinge_damper_adds_its_moment_over_the_strut_length():
     plain = HingedStrut(M_beta=Linear(2e4), M_gamma=Linear(3e4), **kw)
     r = damped.rest_foot + np.array([0.01, -0.02, 0.015])
     gain, offset = 1500.0, np.array([0.0, 0.4, -0.7])
-    x = np.asarray(damped.memory_functions()["strut_deflections"](r)).ravel()
+    x = np.asarray(damped.memory_functions()["strut_deflections"](r, [])).ravel()
     rate = gain * x + offset
     P = lambda leg: np.asarray(leg.memory_functions()["strut_force_memory"](
         r, 0.0, [], gain, offset)).ravel()

@@ -258,11 +258,15 @@ def test_tunable_scene_generates_clean_c(tmp_path):
     scene = load_scene(path)
     gen = codegen.generate(tmp_path / "out", scene)
     info = json.loads((gen.out_dir / codegen.MANIFEST).read_text())
-    # 16 curve parameters of the legs, then gravity (3), mass (1) and inertia (6): μ = 0
-    assert info["np"] == 16 + 10 and info["functions"]["touchdown_rollout"]["in"]["p"] == "26"
-    assert info["param_names"][16:] == ["gravity.x", "gravity.y", "gravity.z", "mass",
-                                        "inertia.xx", "inertia.yy", "inertia.zz", "inertia.xy",
-                                        "inertia.xz", "inertia.yz"]
+    # 16 curve parameters of the legs, then gravity (3), mass (1) and inertia (6): μ = 0;
+    # then the 4 legs' geometry (10 each)
+    assert info["np"] == 16 + 10 + 40 \
+        and info["functions"]["touchdown_rollout"]["in"]["p"] == "66"
+    assert info["param_names"][16:26] == ["gravity.x", "gravity.y", "gravity.z", "mass",
+                                          "inertia.xx", "inertia.yy", "inertia.zz",
+                                          "inertia.xy", "inertia.xz", "inertia.yz"]
+    assert info["param_names"][26:30] == ["leg0.hinge.x", "leg0.hinge.y", "leg0.hinge.z",
+                                          "leg0.e0.x"]
     for source in [*gen.sources, gen.out_dir / "main.c"]:
         # the front end's warnings (the ones CasADi's code could trigger) without optimising
         run = subprocess.run([codegen.find_compiler(), "-std=c99", *codegen.WARNINGS,

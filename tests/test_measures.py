@@ -60,9 +60,11 @@ def test_penetration_of_a_foot_below_a_plane(lander_scene):
 def test_gravity_mass_and_mu_are_inputs(fig4):
     """The step with p's gravity, mass and μ equals a step built with those values."""
     model = build_model(fig4)
-    assert model.param_names[-11:] == ("mu", "gravity.x", "gravity.y", "gravity.z", "mass",
-                                       "inertia.xx", "inertia.yy", "inertia.zz", "inertia.xy",
-                                       "inertia.xz", "inertia.yz")
+    # the scene entries, before the legs' geometry
+    scene_names = model.param_names[:model.params.slice("leg0.hinge").start]
+    assert scene_names[-11:] == ("mu", "gravity.x", "gravity.y", "gravity.z", "mass",
+                                 "inertia.xx", "inertia.yy", "inertia.zz", "inertia.xy",
+                                 "inertia.xz", "inertia.yz")
     other = fig4.with_(mu=0.4, gravity=np.array([0.5, 0.0, -1.62]))
     rebuilt = build_model(other)
     p = model.pack_params(mu=0.4, gravity=(0.5, 0.0, -1.62))

@@ -97,3 +97,43 @@ def test_tripods_refuse_the_event_rules():
     scene = load_scene(STUDIES / "apollo_lander.toml")
     with pytest.raises(ValueError, match="inverted tripods.*events = 'none'"):
         scene.with_(hysteresis="sign", events="branch")
+
+
+def test_one_build_serves_every_tripod_geometry():
+    """A model built for the Apollo-class example and run with the ``p`` of other
+    hardpoints, feet and outer cylinders equals the model built for them: bit for bit
+    against their own model with geometry as inputs, to round-off against the one with
+    the geometry baked in."""
+    base = load_scene(STUDIES / "apollo_lander.toml").with_(duration=0.15)
+    built = build_model(base)
+    variants = [dict(h1=(2.0, 0.0, 1.0), outer_length=2.2),
+                dict(foot=(4.4, 0.1, -1.9), h2=(2.1, 1.2, -0.9), h3=(2.1, -1.25, -1.0))]
+    for variant in variants:
+        spec = dict(h1=base.legs[0].h1, h2=base.legs[0].h2, h3=base.legs[0].h3,
+                    foot=base.legs[0].foot, outer_length=base.legs[0].outer_length)
+        spec.update(variant)
+        curves = {el.name: el.curve for el in base.legs[0].elements}
+        legs = [InvertedTripod(**{k: (azimuth(np.pi / 2 * i) @ np.asarray(v, float)
+                                      if k != "outer_length" else v) for k, v in spec.items()},
+                               **curves) for i in range(4)]
+        scene2 = base.with_(legs=legs)
+        x0 = initial_state(scene2)
+        own, constant = build_model(scene2), build_model(scene2, geometry="constant")
+        X1, Y1 = (np.asarray(a) for a in built.rollout(scene2.steps)(x0, own.default_p,
+                                                                      scene2.dt))
+        X2, Y2 = (np.asarray(a) for a in own.rollout(scene2.steps)(x0, own.default_p,
+                                                                    scene2.dt))
+        Xc, _ = (np.asarray(a) for a in constant.rollout(scene2.steps)(
+            x0, constant.default_p, scene2.dt))
+        assert np.array_equal(X1, X2) and np.array_equal(Y1, Y2), variant
+        # round-off relative to each entry's size (forces are tens of kN); the mean rates
+        # kept in the state are differences over Δt, round-off/Δt where they are ~0
+        assert np.max(np.abs(X1 - Xc) / (1.0 + np.abs(Xc))) < 1e-8, variant
+        assert np.any(state_layout(4).legs(X1, "contact") > 0.5)      # the feet landed
+
+
+def test_a_singular_tripod_geometry_in_p_is_refused():
+    model = build_model(load_scene(STUDIES / "apollo_lander.toml"))
+    h1 = model.default_p[model.params.slice("leg0.h1")]
+    with pytest.raises(ValueError, match="leg 0.*outer_length"):
+        model.pack_params(**{"leg0.outer_length": 10.0, "leg0.h1": h1})
