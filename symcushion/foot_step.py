@@ -33,6 +33,13 @@ from .stroke_lock import axial_branches, skip_unless
 __all__ = ["StepPoses", "LegInput", "FeetStep"]
 
 
+def turned(v, a, b):
+    """``v`` turned by the smallest rotation that takes the unit vector ``a`` to ``b``
+    (Rodrigues; a and b closer than 90°, as two normals of one step are)."""
+    axis = ca.cross(a, b)
+    return v + ca.cross(axis, v) + ca.cross(axis, ca.cross(axis, v)) / (1 + ca.dot(a, b))
+
+
 @dataclass(frozen=True)
 class StepPoses:
     """The body over one step of length ``h`` (CasADi expressions): at the start
@@ -284,8 +291,12 @@ class FeetStep:
         foot_w = P.pos1 + P.R1 @ rho1
         _, _, foot_proj = closest_obstacle(scene.obstacles, foot_w)
         foot_w = ca.if_else(stays, foot_proj, foot_w)
+        _, normal_end, _ = closest_obstacle(scene.obstacles, foot_proj)
         rho1 = ca.if_else(stays, P.R1.T @ (foot_w - P.pos1), rho1)
-        P1 = ca.if_else(stays, out["P"], ca.DM.zeros(3))
+        # the force found with the tangent plane at the predicted end point, turned with
+        # that plane onto the plane at the foot's final point: a frictionless force is then
+        # normal where the foot is, and on a curved obstacle does no work on its slide
+        P1 = ca.if_else(stays, turned(out["P"], n_b, P.R1.T @ normal_end), ca.DM.zeros(3))
         sets, chords = leg.sets, leg.chords
         if sets is not None:
             # the end force and sets of the memory law at the end foot (A1)-(A3): a stroke
@@ -300,6 +311,6 @@ class FeetStep:
             # rest at once: no rate to carry
             chords = ca.if_else(stays, moved, moved * ca.DM(leg.strut.relaxes_free))
         return dict(in_contact=in_contact, active=active, stays=stays, rho_s=rho_s, r_s=r_s,
-                    l=l, n_b=n_b, v_rel=v_rel, normal_w=normal_w, out=out, rho1=rho1,
+                    l=l, n_b=n_b, v_rel=v_rel, normal_w=normal_end, out=out, rho1=rho1,
                     foot_w=foot_w, P1=P1, locked=ca.SX(0), split=split, l_whole=l_whole,
                     sets=sets, chords=chords)

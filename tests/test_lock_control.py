@@ -88,3 +88,51 @@ def test_direct_switches_need_the_lock_and_the_located_switch_together(lock):
         orders[name] = lock.slope(errors)
     assert orders["lock"] < 1.3 and orders["switch"] < 1.3
     assert orders["both"] >= 1.8
+
+
+# -- the memory law as the band stiffness grows (symcushion.absorber) -------------------
+def _memory_run(lock, v0, k_e, h):
+    """Velocity Verlet on the control's model with each leg's axial force from the
+    package's memory law (A1)-(A2) of the control's curves, elastic stiffness ``k_e``:
+    the state (q, v) at T."""
+    import casadi as ca
+
+    from symcushion import absorber
+    from symcushion.characteristics import Crushable, PiecewiseLinear
+    curve = Crushable(lock.K, lock.F_C, lock.K_P, elastic_stiffness=k_e,
+                      unloading=PiecewiseLinear([-1.0, -lock.C_U, 0.0], [-lock.S_U, -lock.S_U, 0.0]))
+    x, s = ca.SX.sym("x", 2), ca.SX.sym("s", 2)      # x = −c: the package's deflection
+    law = ca.Function("law", [x, s], [ca.vertcat(*[absorber.memory_force(curve, x[i], s[i])
+                                                   for i in range(2)]),
+                                      ca.vertcat(*[absorber.next_set(curve, x[i], s[i])
+                                                   for i in range(2)])])
+    to_load = ca.Function("to_load", [x], [ca.vertcat(*[absorber.set_on_loading(curve, x[i])
+                                                        for i in range(2)])])
+
+    def force(q, sets):
+        c, G, Q, _ = lock.kin(q)
+        f, sets_next = (np.asarray(a).ravel() for a in law(-c, sets))
+        return Q + f @ G, sets_next                    # S = −f pushes the hinge off the foot
+
+    q, v = lock.Q0.copy(), np.asarray(v0, dtype=float)
+    sets = np.asarray(to_load(-lock.kin(q)[0])).ravel()   # on the loading curve at start
+    F, _ = force(q, sets)
+    for _ in range(int(round(lock.T / h))):
+        v_half = v + 0.5 * h * lock.MINV * F
+        q = q + h * v_half
+        F, sets = force(q, sets)
+        v = v_half + 0.5 * h * lock.MINV * F
+    return np.r_[q, v]
+
+
+def test_the_memory_law_tends_to_the_lock_as_its_band_stiffens(lock, lock_only):
+    """Between its curves the memory law is elastic with stiffness k_e; as k_e grows its
+    stroke moves less there, and its motion tends to the printed law's Filippov motion,
+    which locks the stroke: the control's event-driven reference at T."""
+    errors = []
+    for k_e in (1e5, 1e6, 1e7):
+        h = 0.2 / np.sqrt(k_e / lock.MASS)        # ω h = 0.2 on the band's fastest mode
+        pos, vel = lock.err(_memory_run(lock, lock_only["v0"], k_e, h), lock_only["y_end"])
+        errors.append(max(pos / lock.Q_SCALE, vel / lock.V_SCALE))
+    assert errors[0] > errors[1] > errors[2], errors
+    assert errors[2] < 0.1 * errors[0], errors

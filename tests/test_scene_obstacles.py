@@ -164,3 +164,39 @@ def test_three_d_friction_direction_implicit_exact_paper_lags(sled_scene):
         lag = friction_lag_after_turn(method, sled_scene)
         assert lag[1] > 10.0, (method, lag[:6])
         assert lag[-1] < 1.0, (method, lag[-5:])
+
+
+def _shifted_dome(dt):
+    """Fig. 3 with its dome 4 cm off the axis, the feet placed on it, μ = 0: the feet
+    slide off-centre over the dome."""
+    from symcushion.placement import place_on_obstacle
+    from symcushion.scene import read_toml, scene_from_dict
+    data = read_toml(ROOT / "studies" / "fig3.toml")
+    data["obstacle"][0]["center"] = [0.04, 0.0, 0.0]
+    data["scene"].update(duration=0.3, dt=dt, method="implicit")   # exact on its plane
+    return place_on_obstacle(scene_from_dict(data), clearance=0.0)
+
+
+def test_a_frictionless_foot_on_a_curved_obstacle_is_pushed_along_its_final_normal():
+    """The force found on the tangent plane at the predicted end point is turned onto the
+    plane at the foot's final point: normal there to round-off (a force left along the
+    predicted normal works on the foot's slide and loses energy at first order)."""
+    from symcushion.layout import output_layout, state_layout
+    from symcushion.obstacles import closest_obstacle
+    from symcushion.touchdown import build_model, initial_state
+    scene = _shifted_dome(1e-3)
+    model = build_model(scene)
+    X, Y = (np.asarray(a) for a in model.rollout(scene.steps)(initial_state(scene),
+                                                               model.default_p, scene.dt))
+    yl, xl = output_layout(4), state_layout(4)
+    force, feet = yl.legs(Y, "force"), xl.legs(X, "foot")
+    touching = yl.legs(Y, "in_contact") > 0.5
+    assert touching.sum() > 500
+    worst = 0.0
+    for j, t in zip(*np.nonzero(touching)):
+        _, n, _ = closest_obstacle(scene.obstacles, feet[j, :, t])
+        n = np.asarray(n, dtype=float).ravel()
+        F = force[j, :, t]
+        worst = max(worst, np.linalg.norm(np.cross(F, n)) / np.linalg.norm(F))
+        np.testing.assert_allclose(yl.legs(Y, "normal")[j, :, t], n, atol=1e-15)
+    assert worst < 1e-12, worst
