@@ -27,7 +27,7 @@ from .contact import contact_step_call
 from .contact_guards import at_least, at_most
 from .contact_midpoint import midpoint_slip_call
 from .layout import quat_exp, quat_mul, quat_to_rot
-from .obstacles import closest_obstacle
+from .obstacles import Plane, closest_obstacle
 from .stroke_lock import axial_branches, skip_unless
 
 __all__ = ["StepPoses", "LegInput", "FeetStep"]
@@ -107,6 +107,9 @@ class FeetStep:
     def __init__(self, scene, poses: StepPoses, mu, step_inputs):
         self.scene, self.poses, self.mu = scene, poses, mu
         self.friction = scene.mu > 0
+        # a curved obstacle turns the tangent plane between a step's predicted and final
+        # foot points
+        self.curved = not all(isinstance(o, Plane) for o in scene.obstacles)
         self.step_inputs = list(step_inputs)
         self.gated = {}
         P = poses
@@ -291,12 +294,16 @@ class FeetStep:
         foot_w = P.pos1 + P.R1 @ rho1
         _, _, foot_proj = closest_obstacle(scene.obstacles, foot_w)
         foot_w = ca.if_else(stays, foot_proj, foot_w)
-        _, normal_end, _ = closest_obstacle(scene.obstacles, foot_proj)
+        if self.curved:
+            _, normal_end, _ = closest_obstacle(scene.obstacles, foot_proj)
+        else:                       # on planes the predicted normal is the final one
+            normal_end = normal_w
         rho1 = ca.if_else(stays, P.R1.T @ (foot_w - P.pos1), rho1)
         # the force found with the tangent plane at the predicted end point, turned with
         # that plane onto the plane at the foot's final point: a frictionless force is then
         # normal where the foot is, and on a curved obstacle does no work on its slide
-        P1 = ca.if_else(stays, turned(out["P"], n_b, P.R1.T @ normal_end), ca.DM.zeros(3))
+        P_end = turned(out["P"], n_b, P.R1.T @ normal_end) if self.curved else out["P"]
+        P1 = ca.if_else(stays, P_end, ca.DM.zeros(3))
         sets, chords = leg.sets, leg.chords
         if sets is not None:
             # the end force and sets of the memory law at the end foot (A1)-(A3): a stroke
