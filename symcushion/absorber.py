@@ -45,6 +45,19 @@ deflection solves
 
     f(x₁, s) + c ẋ₁ + c₂ ẋ₁|ẋ₁| = 0,   ẋ₁ of (A3).                    (A4)
 
+On an element that keeps a set, the viscous damper acts on its elastic line
+(a Kelvin–Voigt element in series with the crushing):
+
+    f(x, s) = clip(k_e (x − s) + c ė, lo(x), hi(x)),                 (A5)
+
+ė the rate of the elastic deflection x − s, whose (A3) over a step with s
+held is that of x. Crushing stays rate-independent, as a honeycomb's is,
+and the force never leaves the band. Where the force is on a bound the set
+moves so that the damped elastic line carries it: s⁺ = x − e₁, with
+(k_e + (3/2)c/Δt) e₁ = f + c((3/2)e₀/Δt + (1/2)ė₀). The orifice damper
+stays in parallel, as a hydraulic strut's is, and so do both dampers on
+an element that keeps no set.
+
 It must not know about struts, legs or contact: the strut
 (``symcushion.strut``) applies (A1) to its axial deflection, and the step
 (``symcushion.touchdown``) carries s in the state.
@@ -102,36 +115,61 @@ def band(curve: Curve, x, theta=None):
     return ca.fmin(f_load, f_unload), ca.fmax(f_load, f_unload)
 
 
-def memory_force(curve: Curve, x, s, theta=None, x_regime=None):
+def memory_force(curve: Curve, x, s, theta=None, x_regime=None, rate=None):
     """f(x, s) of (A1) and the element's end stop in parallel, N or N·m.
 
     ``x_regime`` (default ``x``): the deflection whose place in the band picks
     the regime (on the lower bound, elastic, on the upper bound); the force is
     then that regime's expression at ``x``, so that its derivative in ``x`` is
-    the tangent stiffness of the regime the step is heading for.
+    the tangent stiffness of the regime the step is heading for. ``rate`` =
+    (a, b): the viscous damper's rate a·x + b (A3) on the elastic line (A5).
     """
-    return band_force(curve, x, s, theta, x_regime) + curve.end_stop(x, theta)
+    return band_force(curve, x, s, theta, x_regime, rate) + curve.end_stop(x, theta)
 
 
-def band_force(curve: Curve, x, s, theta=None, x_regime=None):
-    """f(x, s) of (A1) alone (see :func:`memory_force`)."""
+def _band_damper(curve: Curve, rate):
+    """(c, a, b) of the viscous damper on the elastic line (A5), or None."""
+    if rate is None or curve.damping == 0:
+        return None
+    return curve.damping, rate[0], rate[1]
+
+
+def band_force(curve: Curve, x, s, theta=None, x_regime=None, rate=None):
+    """f(x, s) of (A1) with the elastic line's damper (A5), alone (see
+    :func:`memory_force`)."""
     k_e = elastic_stiffness(curve, theta)
     lo, hi = band(curve, x, theta)
-    trial = k_e * (x - s)                                            # (A1)
+    damper = _band_damper(curve, rate)
+
+    def trial_at(z):
+        t = k_e * (z - s)                                              # (A1)
+        if damper is not None:
+            c, a, b = damper
+            t = t + c * (a * z + b)                                    # (A5)
+        return t
+
+    trial = trial_at(x)
     if x_regime is None:
         f = trial if lo is None else ca.fmax(trial, lo)
         return f if hi is None else ca.fmin(f, hi)
     lo_r, hi_r = band(curve, x_regime, theta)
-    trial_r = k_e * (x_regime - s)
+    trial_r = trial_at(x_regime)
     f = trial if lo is None else ca.if_else(trial_r < lo_r, lo, trial)
     if hi is not None:
         f = ca.if_else(trial_r > hi_r, hi, f)
     return f
 
 
-def next_set(curve: Curve, x, s, theta=None):
-    """s⁺ of (A2): the set after the element reached ``x`` from set ``s``."""
-    return x - band_force(curve, x, s, theta) / elastic_stiffness(curve, theta)     # (A2)
+def next_set(curve: Curve, x, s, theta=None, rate=None):
+    """s⁺ of (A2): the set after the element reached ``x`` from set ``s``; with the
+    elastic line's damper (A5), the set whose damped elastic line carries the force."""
+    k_e = elastic_stiffness(curve, theta)
+    f = band_force(curve, x, s, theta, rate=rate)
+    damper = _band_damper(curve, rate)
+    if damper is None:
+        return x - f / k_e                                             # (A2)
+    c, a, b = damper
+    return x - (f - c * (b + a * s)) / (k_e + a * c)                   # (A2), (A5)
 
 
 def free_deflection(curve: Curve, s, theta=None):
@@ -153,20 +191,25 @@ def set_on_loading(curve: Curve, x, theta=None):
 
 
 def element_force(curve: Curve, x, s, theta=None, x_regime=None, rate=None):
-    """An element's force on the memory law: (A1) with its end stop if it keeps a set,
-    else its loading curve; plus its dampers at the deflection rate ``rate`` (A3)."""
+    """An element's force on the memory law, ``rate`` = (a, b) its dampers' rate
+    a·x + b (A3). An element that keeps a set: (A1) with its end stop, its viscous
+    damper on the elastic line (A5) and its orifice in parallel. One that keeps
+    none: its loading curve with both dampers in parallel."""
+    value = None if rate is None else rate[0] * x + rate[1]
     if curve.has_memory:
-        f = memory_force(curve, x, s, theta, x_regime)
-    else:
-        f = curve.force(x, 0.0, theta)
-    if curve.has_damper and rate is not None:
-        f = f + damper_force(curve, rate)
+        f = memory_force(curve, x, s, theta, x_regime, rate)
+        if curve.orifice > 0 and value is not None:
+            f = f + curve.orifice * value * ca.fabs(value)
+        return f
+    f = curve.force(x, 0.0, theta)
+    if curve.has_damper and value is not None:
+        f = f + damper_force(curve, value)
     return f
 
 
-def element_next_set(curve: Curve, x, s, theta=None):
+def element_next_set(curve: Curve, x, s, theta=None, rate=None):
     """s⁺ of (A2) for an element that keeps a set; ``s`` unchanged for one that does not."""
-    return next_set(curve, x, s, theta) if curve.has_memory else s
+    return next_set(curve, x, s, theta, rate) if curve.has_memory else s
 
 
 def damper_force(curve: Curve, rate):

@@ -311,9 +311,12 @@ class FeetStep:
             fns, rate = leg.fns, self.damper_rate(leg, rho_s)
             P1 = ca.if_else(stays, fns["strut_force_memory"](rho1, sets, leg.p_leg, *rate),
                             ca.DM.zeros(3))
-            sets = fns["strut_next_set"](rho1, sets, leg.p_leg)
-            moved = (fns["strut_deflections"](rho1, leg.p_leg)
-                     - fns["strut_deflections"](rho_s, leg.p_leg)) / h
+            sets_end = fns["strut_next_set"](rho1, sets, leg.p_leg, *rate)
+            # the mean rates of the elastic deflections x − s, which (A3) of the next step
+            # reads (for an element that keeps no set, of x)
+            moved = ((fns["strut_deflections"](rho1, leg.p_leg) - sets_end)
+                     - (fns["strut_deflections"](rho_s, leg.p_leg) - sets)) / h
+            sets = sets_end
             # a free foot's elements that do not relax (a strut's hinge angles) return to
             # rest at once: no rate to carry
             chords = ca.if_else(stays, moved, moved * ca.DM(leg.strut.relaxes_free))

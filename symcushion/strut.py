@@ -157,9 +157,9 @@ def memory_functions_of(leg, geometry: str = "constant") -> dict[str, ca.Functio
         "strut_stiffness_memory": ca.Function("strut_stiffness_memory",
                                               [r, sets, p, *rate, r_regime], [Dp],
                                               names + ["r_regime"], ["Dp"]),
-        "strut_next_set": ca.Function("strut_next_set", [r, sets, p],
-                                      [leg.next_sets_expr(r, sets, p)],
-                                      ["r", "sets", "p"], ["next_set"]),
+        "strut_next_set": ca.Function("strut_next_set", [r, sets, p, *rate],
+                                      [leg.next_sets_expr(r, sets, p, rate)],
+                                      names, ["next_set"]),
         "strut_deflections": ca.Function("strut_deflections", [r, p],
                                          [leg.deflections_expr(r, p)], ["r", "p"], ["x"]),
         "strut_free_foot": ca.Function(
@@ -499,16 +499,18 @@ class HingedStrut:
             forces[el.name] = absorber.element_force(
                 el.curve, x[el.name], sets[k], self._theta(el, p),
                 None if x_regime is None else x_regime[el.name],
-                None if rate is None else rate[0] * x[el.name] + rate[1][k])
+                None if rate is None else (rate[0], rate[1][k]))
         return self._assemble(g, forces, r, p)
 
-    def next_sets_expr(self, r, sets, p):
-        """The sets after the foot reached ``r`` (A2), in the order (S, M_β, M_γ)."""
+    def next_sets_expr(self, r, sets, p, rate=None):
+        """The sets after the foot reached ``r`` (A2), in the order (S, M_β, M_γ);
+        ``rate`` = (a, b) as in :meth:`memory_force_expr` (A5)."""
         x = self._deflections(self.geometry(r, p))
         out = [sets[k] for k in range(3)]
         for el in self.elements:
             k = _ELEMENT_ORDER.index(el.name)
-            out[k] = absorber.element_next_set(el.curve, x[el.name], sets[k], self._theta(el, p))
+            out[k] = absorber.element_next_set(el.curve, x[el.name], sets[k], self._theta(el, p),
+                                               None if rate is None else (rate[0], rate[1][k]))
         return ca.vertcat(*out)
 
     def free_foot_expr(self, sets, p, x_start, mean_rate, dt):
@@ -530,7 +532,8 @@ class HingedStrut:
         ``strut_force_memory(r, sets, p, rate_gain, rate_offset) -> P`` (the
         dampers' rates a·x + b, (A3)), ``strut_stiffness_memory(..., r_regime)
         -> Dp`` (∂P/∂r in the regime that ``r_regime`` picks, the dampers' a·c
-        included), ``strut_next_set(r, sets, p) -> next_set`` (A2),
+        included), ``strut_next_set(r, sets, p, rate_gain, rate_offset) -> next_set``
+        (A2), (A5),
         ``strut_free_foot(sets, p, deflection_start, mean_rate, dt) -> r`` (a
         free foot at the end of a step, body frame, (A4)) and
         ``strut_deflections(r, p) -> x`` (each element's deflection).

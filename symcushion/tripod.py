@@ -393,16 +393,17 @@ class InvertedTripod:
         f = ca.vertcat(*[absorber.element_force(
             el.curve, q[i], sets[i], self._theta(el, p),
             None if q_regime is None else q_regime[i],
-            None if rate is None else rate[0] * q[i] + rate[1][i])
+            None if rate is None else (rate[0], rate[1][i]))
             for i, el in enumerate(self.elements)])
         return ca.jacobian(q, r).T @ f                                  # (T1)
 
-    def next_sets_expr(self, r, sets, p):
-        """The elements' sets after the foot reached ``r`` (A2)."""
+    def next_sets_expr(self, r, sets, p, rate=None):
+        """The elements' sets after the foot reached ``r`` (A2), (A5)."""
         q = self.geometry(r, p)["q"]
-        return ca.vertcat(*[absorber.element_next_set(el.curve, q[i], sets[i],
-                                                      self._theta(el, p))
-                            for i, el in enumerate(self.elements)])
+        return ca.vertcat(*[absorber.element_next_set(
+            el.curve, q[i], sets[i], self._theta(el, p),
+            None if rate is None else (rate[0], rate[1][i]))
+            for i, el in enumerate(self.elements)])
 
     def free_foot_expr(self, sets, p, x_start, mean_rate, dt):
         """A free foot at the end of a step (body frame): each element at its free

@@ -22,7 +22,7 @@ ROOT = HERE.parents[1]
 
 #: Times shown (s): the uphill feet crushing as leg 0 lands, the hop (all feet free),
 #: and the lander at rest.
-TIMES = (0.05, 0.18, 0.6)
+TIMES = (0.03, 0.07, 0.6)
 
 
 def main(argv=None):
