@@ -206,6 +206,7 @@ def check_scene(scene: Scene, model=None, x0=None) -> list:
     findings += _check_surfaces(scene, x0)
     findings += _check_curves(scene)
     findings += _check_free_directions(scene, x0)
+    findings += _check_damping_times(scene)
     findings += _check_time_step(scene, model, x0)
     return sorted(findings, key=lambda f: f.severity != "error")
 
@@ -345,6 +346,41 @@ def _check_free_directions(scene, x0):
                 "frictionless contact step cannot hold it and the body falls through the "
                 "obstacle; give the leg both hinge springs (`M_beta`, `M_gamma`) or set mu > 0.",
                 "error", leg=j, value=float(values[0]), field=f"legs[{j}]"))
+    return out
+
+
+#: Largest spread of a leg's damping times c/k (the largest over the smallest) that
+#: keeps its damped foot's step stiffness close to the shape of its elastic one.
+DAMPING_TIME_SPREAD = 3.0
+
+
+def _check_damping_times(scene):
+    """With friction, a leg whose elements are damped with very different time constants
+    c/k (say the axial element alone) gives its massless foot a step stiffness of
+    another shape than its elastic one; near the friction cone's edge the slip Coulomb's
+    law asks for may then push the force out of the cone, and the foot hops
+    (docs/absorbers.md, "Dampers on every element")."""
+    if scene.mu == 0 or scene.hysteresis != "memory":
+        return []
+    out = []
+    for j, leg in enumerate(scene.legs):
+        times = {}
+        for el in leg.elements:
+            k = abs(float(el.curve.slope(0.0)))
+            if k > 0:
+                times[el.name] = el.curve.damping / k
+        damped = [t for t in times.values() if t > 0]
+        if not damped:
+            continue
+        low, high = min(times.values()), max(times.values())
+        if low == 0 or high / low > DAMPING_TIME_SPREAD:
+            shown = ", ".join(f"{name} {1e3 * t:.3g} ms" for name, t in times.items())
+            out.append(Finding(
+                "damping_times", f"leg {j}: its elements' damping times c/k differ ({shown}); "
+                "a sliding foot behind dampers of unlike time constants can hop; give every "
+                "element of the leg the same c/k (docs/absorbers.md, \"Dampers on every "
+                "element\").", "warning", leg=j, value=high / max(low, 1e-300),
+                field=f"legs[{j}]"))
     return out
 
 

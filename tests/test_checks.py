@@ -204,3 +204,18 @@ def test_a_frictionless_leg_without_a_hinge_spring_is_refused_before_it_falls_th
     # with friction, or with both hinge springs, the same legs are accepted
     assert not [f for f in check_scene(scene.with_(mu=0.5)) if f.kind == "free_direction"]
     assert not [f for f in check_scene(lander.with_(mu=0.0)) if f.kind == "free_direction"]
+
+
+def test_a_leg_damped_on_its_axis_alone_is_warned():
+    """Dampers of one time constant on every element pass; an axial damper alone is
+    warned about, naming the leg and the time constants (docs/absorbers.md)."""
+    from symcushion.checks import check_scene
+    from symcushion.scene import read_toml
+    studies = Path(__file__).resolve().parents[1] / "studies"
+    data = read_toml(studies / "lander_damped.toml")
+    assert not [f for f in check_scene(scene_from_dict(data)) if f.kind == "damping_times"]
+    for name in ("M_beta", "M_gamma"):
+        del data["legs"][name]["damping"]
+    found = [f for f in check_scene(scene_from_dict(data)) if f.kind == "damping_times"]
+    assert len(found) == 3 and found[0].severity == "warning"
+    assert "S 3.5 ms" in found[0].message and "same c/k" in found[0].message
