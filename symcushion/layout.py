@@ -37,7 +37,7 @@ __all__ = ["Field", "VectorLayout", "BODY_STATE_FIELDS", "LEG_STATE_FIELDS", "BO
            "LEG_OUT_FIELDS", "BODY_STATE", "LEG_STATE", "BODY_OUT", "LEG_OUT", "MODES",
            "UNITS", "SCENE_PARAM_FIELDS", "LEG_GEOMETRY_FIELDS",
            "TRIPOD_GEOMETRY_FIELDS", "FOOTPAD_FIELD", "ParamLayout", "param_layout",
-           "has_footpads", "default_p", "state_layout", "output_layout", "state_columns",
+           "has_footpads", "footpads", "default_p", "state_layout", "output_layout", "state_columns",
            "output_columns", "quat_to_rot", "quat_to_rot_np", "quat_mul", "quat_mul_np", "quat_exp",
            "quat_from_axis_angle_np", "body_axis", "body_axis_np", "one_minus_cos_tilt",
            "tilt", "tilt_np"]
@@ -571,6 +571,15 @@ class ParamLayout:
 def has_footpads(scene) -> bool:
     """True if some leg of ``scene`` has a footpad (radius > 0)."""
     return any(leg.footpad > 0 for leg in scene.legs)
+
+
+def footpads(scene, lay: ParamLayout, p) -> list:
+    """Each leg's footpad radius (m): its entry of ``p`` where ``lay`` has one, else the
+    leg's own (a Python float, 0.0 for a point foot, whose expressions then carry no
+    pad term)."""
+    if lay.footpads:
+        return [lay.footpad(p, j) for j in range(len(scene.legs))]
+    return [leg.footpad for leg in scene.legs]
 
 
 def param_layout(scene, geometry: bool = True) -> ParamLayout:

@@ -80,7 +80,7 @@ import numpy as np
 from .branch_switch import branch_flip, branch_switch_kick, locates_switch
 from .foot_step import FeetStep, LegInput, StepPoses
 from .layout import (BODY_OUT, BODY_STATE, LEG_OUT, LEG_STATE, MODES, ParamLayout, default_p,
-                     output_layout, param_layout, quat_exp, quat_mul, quat_to_rot,
+                     footpads, output_layout, param_layout, quat_exp, quat_mul, quat_to_rot,
                      quat_to_rot_np, state_layout)
 from .obstacles import closest_obstacle
 from .scene import Scene
@@ -216,14 +216,6 @@ def _check_geometry_entries(scene: Scene, lay: ParamLayout, p) -> None:
             real(f"leg{j}.footpad", float(lay.footpad(p, j)), nonnegative=True, unit="m")
 
 
-def _footpads(scene: Scene, lay: ParamLayout, p) -> list:
-    """Each leg's footpad radius: its entry of ``p`` where ``p`` has one, else the leg's
-    (a Python float: 0.0 builds a point foot's expressions)."""
-    if lay.footpads:
-        return [lay.footpad(p, j) for j in range(len(scene.legs))]
-    return [leg.footpad for leg in scene.legs]
-
-
 def _leg_params(scene: Scene, geometry: bool = True):
     """Names of ``p`` and each leg's (start, stop) range of curve parameters."""
     lay = param_layout(scene, geometry)
@@ -324,7 +316,7 @@ def build_model(scene: Scene, geometry: str = "input") -> StepModel:
             fns["strut_geometry"] = bound_geometry(fns["strut_geometry"], p_leg)
     rest = [leg.rest_foot_expr(p_leg) if inputs else ca.DM(leg.rest_foot)
             for leg, p_leg in zip(legs, p_of)]
-    pads = _footpads(scene, params, p)
+    pads = footpads(scene, params, p)
 
     R = quat_to_rot(quat)
 
@@ -667,7 +659,7 @@ def _legs_at(scene: Scene, p=None):
                 for leg, p_leg in zip(scene.legs, p_legs)]
     else:
         rest = [leg.rest_foot for leg in scene.legs]
-    return fns, p_legs, rest, [float(a) for a in _footpads(scene, lay, p)]
+    return fns, p_legs, rest, [float(a) for a in footpads(scene, lay, p)]
 
 
 def _rot_np(q):
