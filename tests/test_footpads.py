@@ -13,6 +13,7 @@ import pytest
 
 from symcushion.characteristics import Linear
 from symcushion.checks import FOOTPAD_FRACTION, check_scene
+from symcushion.driver import simulate
 from symcushion.layout import output_layout, state_layout
 from symcushion.obstacles import ImplicitSurface, Plane, Sphere, Terrain
 from symcushion.scene import Body, Scene, scene_from_dict
@@ -207,7 +208,6 @@ def test_a_pad_rests_on_a_sphere_with_its_centre_at_R_plus_a(b):
     np.testing.assert_allclose(xl.get(x0, "position")[2] - foot[2], 1.5 - 10 * 9.81 / 2e4,
                                rtol=0, atol=1e-9)
     model = build_model(scene)
-    from symcushion.driver import simulate
     traj = simulate(scene, model=model, x0=x0)
     assert np.all(traj.contact[:, 0] == 1) and np.all(traj.mode[1:, 0] == 1)   # stuck
     np.testing.assert_allclose(traj.foot[:, 0], np.broadcast_to(foot, (len(traj.t), 3)),
@@ -255,7 +255,6 @@ def test_a_pad_wider_than_a_rock_does_not_sink_into_it():
     padded = one_leg(terrain, offset, pad=a)
     lengthened = one_leg(terrain, offset, length=1.5 + a)
     xl = state_layout(1)
-    from symcushion.driver import simulate
     traj = simulate(padded, x0=equilibrium_state(padded, solve_attitude=False))
     pad = traj.foot[-1, 0]
     assert traj.contact[-1, 0] == 1
