@@ -39,7 +39,8 @@ from .validation import SceneError
 
 __all__ = ["Finding", "PhysicsWarning", "check_scene", "preflight", "check_file", "file_kind",
            "START_TOLERANCE", "BODY_TOLERANCE", "REACH_FRACTIONS", "SAMPLE_DIRECTIONS",
-           "FD_STEP", "GRADIENT_TOLERANCE", "FAST_STEP_FRACTION", "DT_ERROR_RATIO"]
+           "FD_STEP", "GRADIENT_TOLERANCE", "FAST_STEP_FRACTION", "DT_ERROR_RATIO",
+           "FOOTPAD_FRACTION"]
 
 #: How far (m) a foot may start below an obstacle's surface. A scene that puts
 #: the feet exactly on the surface (Figs. 3–4) computes that height in
@@ -81,6 +82,13 @@ FAST_STEP_FRACTION = 0.05
 #: (ω Δt = 20) the effective stiffness would have to be 100 times below the
 #: held one for the step to be stable.
 DT_ERROR_RATIO = 10.0
+
+#: A footpad whose radius exceeds this fraction of its leg's rest length is a
+#: warning: twice the Apollo LM's ratio (0.47 m pads on primaries of about
+#: 3.8 m, 1/8). Beyond it what the offset-surface model neglects (the pad's
+#: tilt, its contact patch, the moment of the contact point's offset) is a
+#: large share of the leg's geometry (docs/footpads.md).
+FOOTPAD_FRACTION = 0.25
 
 class PhysicsWarning(UserWarning):
     """A physically doubtful scene or run (see docs/checks.md)."""
@@ -144,10 +152,11 @@ def _rotations(q):
         np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)], 1)
 
 
-def _distances(scene: Scene, points) -> np.ndarray:
-    """Signed distance, shape (len(obstacles), n), of world points, shape (3, n)."""
+def _distances(scene: Scene, points, pad: float = 0.0) -> np.ndarray:
+    """Signed distance, shape (len(obstacles), n), of world points, shape (3, n); with
+    ``pad`` a, the clearance of footpads of radius a centred there."""
     p = ca.SX.sym("p", 3)
-    fn = ca.Function("obstacle_distance", [p], [ca.vertcat(*[o.distance(p)
+    fn = ca.Function("obstacle_distance", [p], [ca.vertcat(*[o.distance(p, pad)
                                                               for o in scene.obstacles])],
                      ["p"], ["d"])
     return np.asarray(fn(np.asarray(points, float)), dtype=float).reshape(
@@ -202,6 +211,7 @@ def check_scene(scene: Scene, model=None, x0=None) -> list:
     x0 = initial_state(scene) if x0 is None else np.asarray(x0, dtype=float).ravel()
     findings = []
     findings += _check_start(scene, x0)
+    findings += _check_footpads(scene)
     findings += _check_terrain(scene, x0)
     findings += _check_surfaces(scene, x0)
     findings += _check_curves(scene)
@@ -222,12 +232,13 @@ def _check_start(scene, x0):
                            f"{allowed:.3g} m); move the body out of the obstacle.", "error",
                            value=float(-d_body[k]),
                            field="body.position"))
-    for j in range(len(scene.legs)):
-        d_foot = _distances(scene, feet[j])[:, 0]
+    for j, leg in enumerate(scene.legs):
+        d_foot = _distances(scene, feet[j], leg.footpad)[:, 0]
         d_hinge = _distances(scene, hinges[j])[:, 0]
         k = int(np.argmin(d_foot))
         if d_foot[k] < -START_TOLERANCE:
-            out.append(Finding("foot_inside", f"`body.position`: foot of leg {j} starts "
+            what = f"the footpad of leg {j}" if leg.footpad > 0 else f"foot of leg {j}"
+            out.append(Finding("foot_inside", f"`body.position`: {what} starts "
                                f"{-d_foot[k]:.3g} m inside {_where(scene, k)} (tolerance "
                                f"{START_TOLERANCE:g} m); the leg would get a spring kick — raise "
                                "the body so the feet start on or above the surface.", "error",
@@ -246,6 +257,22 @@ def _check_start(scene, x0):
                            f"{FAST_STEP_FRACTION:g} of the shortest leg ({shortest:g} m); the "
                            "touchdown is under-resolved — reduce `dt`.", "warning",
                            value=speed * scene.dt / shortest, field="scene.dt"))
+    return out
+
+
+def _check_footpads(scene):
+    """A footpad larger than :data:`FOOTPAD_FRACTION` of its leg (a warning)."""
+    out = []
+    for j, leg in enumerate(scene.legs):
+        ratio = leg.footpad / leg.length
+        if ratio > FOOTPAD_FRACTION:
+            out.append(Finding(
+                "footpad_large", f"`legs[{j}].footpad` = {leg.footpad:g} m is {ratio:.3g} of "
+                f"the leg's rest length {leg.length:g} m (more than {FOOTPAD_FRACTION:g}): the "
+                "pad is modelled as a ball about the foot that does not tilt, and its contact "
+                "patch and the moment of the contact point's offset are neglected — check the "
+                "radius (m, not the diameter) or accept the model's limits (docs/footpads.md).",
+                "warning", leg=j, value=ratio, field=f"legs[{j}].footpad"))
     return out
 
 

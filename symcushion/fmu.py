@@ -41,9 +41,9 @@ import numpy as np
 from . import __version__
 from .cbuild import CFLAGS, CODEGEN_OPTIONS, WARNINGS, _run_parallel, find_compiler
 from .codegen import _c_string
-from .layout import (BODY_OUT_FIELDS, BODY_STATE_FIELDS, LEG_GEOMETRY_FIELDS, LEG_OUT_FIELDS,
-                     TRIPOD_GEOMETRY_FIELDS,
-                     MODES, SCENE_PARAM_FIELDS, output_layout, quat_to_rot_np, state_layout)
+from .layout import (BODY_OUT_FIELDS, BODY_STATE_FIELDS, FOOTPAD_FIELD, LEG_GEOMETRY_FIELDS,
+                     LEG_OUT_FIELDS, MODES, SCENE_PARAM_FIELDS, TRIPOD_GEOMETRY_FIELDS,
+                     output_layout, quat_to_rot_np, state_layout)
 from .results import check_output_file, replacing
 from .scene import Scene, load_scene
 from .touchdown import StepModel, build_model, initial_state
@@ -172,8 +172,9 @@ def _param_unit_and_meaning(name: str):
         f = scene_fields[head]
         return (None if f.unit == "1" else f.unit), f.meaning
     leg, element, *rest = name.split(".")
-    geometry = {f.name: f for f in LEG_GEOMETRY_FIELDS + TRIPOD_GEOMETRY_FIELDS}
-    if element in geometry:                 # leg{j}.hinge.x, leg{j}.length, ...
+    geometry = {f.name: f for f in LEG_GEOMETRY_FIELDS + TRIPOD_GEOMETRY_FIELDS
+                + (FOOTPAD_FIELD,)}
+    if element in geometry:                 # leg{j}.hinge.x, leg{j}.length, leg{j}.footpad
         f = geometry[element]
         return (None if f.unit == "1" else f.unit), f"{leg}'s {f.meaning}"
     param = rest[-1]

@@ -3,7 +3,9 @@
 This module owns what happens to each foot over one body step whose poses
 are given (§1, §3 of the paper): where a free foot's unloaded position
 crosses the obstacle, the contact step of ``symcushion.contact`` on the
-tangent plane (and its second pass at the predicted end point), the
+tangent plane (and its second pass at the predicted end point; a foot
+with a pad of radius a is the pad's centre, on the obstacle's surface offset
+by a, ``symcushion.obstacles``), the
 midpoint slip rule of ``symcushion.contact_midpoint`` with the start force
 carried into the frame of the end of the step, and, with ``events =
 "branch"`` or ``"lock"`` (a leg that is not locked), the contact step split
@@ -69,7 +71,9 @@ class LegInput:
     ``sets`` (3) and their mean rates over the previous step ``chords`` (3)
     (else None), with ``fns`` holding the leg's ``memory_functions`` too; then
     ``rest`` is the free foot at the end of the step and ``rest_start`` the
-    free foot at its start (a damped foot relaxes over the step)."""
+    free foot at its start (a damped foot relaxes over the step). ``pad``: its
+    footpad radius a (m; a float, or the entry of ``p``), the foot being the pad's
+    centre on the obstacle's surface offset by a (0.0 builds a point foot's step)."""
 
     strut: object
     fns: dict
@@ -80,6 +84,7 @@ class LegInput:
     sets: ca.SX | None = None
     chords: ca.SX | None = None
     rest_start: ca.SX | None = None
+    pad: ca.SX | float = 0.0
 
 
 class FeetStep:
@@ -125,7 +130,8 @@ class FeetStep:
         step's outputs, l, n_b, the world normal and the rate."""
         scene, mu, friction = self.scene, self.mu, self.friction
         fns, p_leg = leg.fns, leg.p_leg
-        _, normal_w, _ = closest_obstacle(scene.obstacles, r_s)
+        pad = leg.pad
+        _, normal_w, _ = closest_obstacle(scene.obstacles, r_s, pad)
         l = R_e.T @ (r_s - pos_e) - rho_s                      # §3: l_j, exact kinematics
         n_b = R_e.T @ normal_w
         u0 = rho_s - leg.rest
@@ -144,8 +150,8 @@ class FeetStep:
             # (a slipping foot may leave the band where a sticking one would enter it)
             if scene.tangent_plane == "end":
                 _, _, r_pred = closest_obstacle(scene.obstacles,
-                                                pos_e + R_e @ (rho_s + out["delta"]))
-                _, normal_w, _ = closest_obstacle(scene.obstacles, r_pred)
+                                                pos_e + R_e @ (rho_s + out["delta"]), pad)
+                _, normal_w, _ = closest_obstacle(scene.obstacles, r_pred, pad)
                 n_b = R_e.T @ normal_w
                 l = l + n_b * ca.dot(n_b, R_e.T @ (r_pred - r_s))
             if leg.sets is not None:
@@ -182,9 +188,10 @@ class FeetStep:
         Dp = fns["strut_stiffness_memory"](rho_d, s0, p_leg, *rate, rho_d)
         return fns["strut_force_memory"](rho_d, s0, p_leg, *rate) - Dp @ d, Dp
 
-    def on_surface(self, rho, delta, pos_e, R_e):
-        """The foot ρ + δ at the pose (pos_e, R_e) put on the obstacle: world, body."""
-        _, _, w = closest_obstacle(self.scene.obstacles, pos_e + R_e @ (rho + delta))
+    def on_surface(self, rho, delta, pos_e, R_e, pad=0.0):
+        """The foot ρ + δ at the pose (pos_e, R_e) put on the obstacle (its offset surface
+        for a footpad of radius ``pad``): world, body."""
+        _, _, w = closest_obstacle(self.scene.obstacles, pos_e + R_e @ (rho + delta), pad)
         return w, R_e.T @ (w - pos_e)
 
     def split_at_switch(self, leg: LegInput, rho_s, r_s, stored):
@@ -214,12 +221,12 @@ class FeetStep:
         # up to the switch on the stored curve
         before, _, _, _, _ = self.contact_from(leg, rho_s, r_s, pos_t, R_t,
                                                on_branch(stored, rho_s), P.R)
-        foot_t, rho_t = self.on_surface(rho_s, before["delta"], pos_t, R_t)
+        foot_t, rho_t = self.on_surface(rho_s, before["delta"], pos_t, R_t, leg.pad)
         # at the switch the massless foot finds its equilibrium on the new curve at
         # once (l = 0: the body does not move during the jump)
         jump, _, _, _, _ = self.contact_from(leg, rho_t, foot_t, pos_t, R_t,
                                              on_branch(new, rho_t), R_t)
-        foot_t, rho_t = self.on_surface(rho_t, jump["delta"], pos_t, R_t)
+        foot_t, rho_t = self.on_surface(rho_t, jump["delta"], pos_t, R_t, leg.pad)
         after, l, n_b, normal_w, v_rel = self.contact_from(leg, rho_t, foot_t, P.pos1, P.R1,
                                                            on_branch(new, rho_t), R_t)
         use = ca.logic_and(ca.logic_and(sw["switches"], leg.foot["contact"] > 0.5),
@@ -238,12 +245,12 @@ class FeetStep:
         # free foot: where does its unloaded position cross the surface?
         free0 = P.pos + P.R @ (leg.rest if leg.rest_start is None else leg.rest_start)
         free1 = P.pos1 + P.R1 @ leg.rest
-        d0, _, _ = closest_obstacle(scene.obstacles, free0)
-        d1, _, _ = closest_obstacle(scene.obstacles, free1)
+        d0, _, _ = closest_obstacle(scene.obstacles, free0, leg.pad)
+        d1, _, _ = closest_obstacle(scene.obstacles, free1, leg.pad)
         crossing = d0 - d1
         tau = ca.if_else(crossing > 0, d0 / ca.if_else(crossing > 0, crossing, 1.0), 0.0)
         tau = at_most(at_least(tau, 0.0), 1.0)
-        _, _, touch = closest_obstacle(scene.obstacles, free0 + tau * (free1 - free0))
+        _, _, touch = closest_obstacle(scene.obstacles, free0 + tau * (free1 - free0), leg.pad)
         touches = d1 < 0
         active = ca.logic_or(in_contact, touches)
 
@@ -292,7 +299,7 @@ class FeetStep:
         stays = ca.logic_and(active, out["contact"] > 0.5)
         rho1 = ca.if_else(stays, rho_last + out["delta"], leg.rest)
         foot_w = P.pos1 + P.R1 @ rho1
-        _, _, foot_proj = closest_obstacle(scene.obstacles, foot_w)
+        _, _, foot_proj = closest_obstacle(scene.obstacles, foot_w, leg.pad)
         foot_w = ca.if_else(stays, foot_proj, foot_w)
         if self.curved:
             _, normal_end, _ = closest_obstacle(scene.obstacles, foot_proj)

@@ -36,9 +36,9 @@ import numpy as np
 __all__ = ["Field", "VectorLayout", "BODY_STATE_FIELDS", "LEG_STATE_FIELDS", "BODY_OUT_FIELDS",
            "LEG_OUT_FIELDS", "BODY_STATE", "LEG_STATE", "BODY_OUT", "LEG_OUT", "MODES",
            "UNITS", "SCENE_PARAM_FIELDS", "LEG_GEOMETRY_FIELDS",
-           "TRIPOD_GEOMETRY_FIELDS", "ParamLayout", "param_layout", "default_p",
-           "state_layout", "output_layout", "state_columns", "output_columns",
-           "quat_to_rot", "quat_to_rot_np", "quat_mul", "quat_mul_np", "quat_exp",
+           "TRIPOD_GEOMETRY_FIELDS", "FOOTPAD_FIELD", "ParamLayout", "param_layout",
+           "has_footpads", "footpads", "default_p", "state_layout", "output_layout", "state_columns",
+           "output_columns", "quat_to_rot", "quat_to_rot_np", "quat_mul", "quat_mul_np", "quat_exp",
            "quat_from_axis_angle_np", "body_axis", "body_axis_np", "one_minus_cos_tilt",
            "tilt", "tilt_np"]
 
@@ -396,6 +396,11 @@ TRIPOD_GEOMETRY_FIELDS = (
     Field("foot", "m", "the foot at rest, body axes (sets the rest lengths)", _XYZ),
     Field("outer_length", "m", "from h₁ to the secondaries' pin Q on the primary"),
 )
+#: The footpad entry of ``p``, one per leg after the geometry blocks, present in a
+#: scene where some leg has a pad (a scene of point feet builds the graph without
+#: pad terms and has no entry to vary, as a frictionless scene has no μ).
+FOOTPAD_FIELD = Field("footpad", "m", "footpad radius a: the foot is the pad's centre, on "
+                      "the obstacle's surface offset by a (0: a point foot)")
 #: Where each entry of the inertia field goes in the 3 × 3 tensor.
 _INERTIA_ENTRIES = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
 
@@ -405,12 +410,13 @@ class ParamLayout:
     (with ``geometry``) every leg's geometry.
 
     ``p = [leg 0 params, leg 1 params, ..., (mu), gravity (3), mass, inertia (6),
-    (leg 0 geometry (10), leg 1 geometry, ...)]``; names are
-    ``leg{j}.{element}.{name}`` for the legs' curve parameters, ``mu``,
+    (leg 0 geometry (10), leg 1 geometry, ..., (leg 0 footpad, leg 1 footpad, ...))]``;
+    names are ``leg{j}.{element}.{name}`` for the legs' curve parameters, ``mu``,
     ``gravity.x``, ``mass``, ``inertia.xx``, ... for the scene, and
     ``leg{j}.hinge.x``, ``leg{j}.e0.x``, ``leg{j}.en.x``, ``leg{j}.length`` for
-    the geometry (:data:`LEG_GEOMETRY_FIELDS`). The geometry comes last so
-    that the entries before it keep the indices they had without it.
+    the geometry (:data:`LEG_GEOMETRY_FIELDS`), then ``leg{j}.footpad``
+    (:data:`FOOTPAD_FIELD`). The geometry comes last, and the footpads after
+    it, so that the entries before them keep the indices they had without them.
 
     Parameters
     ----------
@@ -423,12 +429,16 @@ class ParamLayout:
     geometry_fields : sequence of tuple of Field, optional
         Each leg's geometry block (its scheme's ``geometry_fields``); default
         :data:`LEG_GEOMETRY_FIELDS` for every leg.
+    footpads : bool
+        Whether every leg's footpad radius is an entry (default False; only
+        with ``geometry``).
     """
 
     def __init__(self, leg_param_names, friction: bool, geometry: bool = False,
-                 geometry_fields=None):
+                 geometry_fields=None, footpads: bool = False):
         self.friction = bool(friction)
         self.geometry = bool(geometry)
+        self.footpads = bool(footpads) and self.geometry
         leg_param_names = list(leg_param_names)
         self.geometry_fields = (tuple(geometry_fields) if geometry_fields is not None
                                 else (LEG_GEOMETRY_FIELDS,) * len(leg_param_names))
@@ -451,6 +461,11 @@ class ParamLayout:
                 self._geometry[key] = slice(start, start + f.size)
                 names += [key] if not f.axes else [f"{key}.{a}" for a in f.axes]
                 start += f.size
+        for j in range(len(self._legs) if self.footpads else 0):
+            key = f"leg{j}.{FOOTPAD_FIELD.name}"
+            self._geometry[key] = slice(start, start + 1)
+            names.append(key)
+            start += 1
         self.names, self.size = tuple(names), start
 
     def leg(self, p, j: int):
@@ -465,6 +480,10 @@ class ParamLayout:
         s = self.slice(f"leg{j}.{fields[0].name}")
         return _rows(p, s.start, s.start + _block_size(fields))
 
+    def footpad(self, p, j: int):
+        """Leg ``j``'s footpad radius in ``p`` (m; a float of a 1-D NumPy ``p``)."""
+        return self.get(p, f"leg{j}.{FOOTPAD_FIELD.name}")
+
     def leg_inputs(self, p, j: int):
         """The ``p`` of leg ``j``'s strut Functions: its curve parameters, then (with
         ``geometry``) its geometry block (NumPy or CasADi)."""
@@ -477,7 +496,8 @@ class ParamLayout:
 
     def slice(self, field: str) -> slice:
         """Index range of a scene field (``mu``, ``gravity``, ``mass``, ``inertia``) or of a
-        leg's geometry field (``leg0.hinge``, ``leg0.e0``, ``leg0.en``, ``leg0.length``)."""
+        leg's geometry field (``leg0.hinge``, ``leg0.e0``, ``leg0.en``, ``leg0.length``,
+        ``leg0.footpad``)."""
         if field in self._geometry:
             return self._geometry[field]
         if field not in self._scene:
@@ -486,6 +506,9 @@ class ParamLayout:
             if field.startswith("leg") and not self.geometry:
                 extra = " (this model bakes the legs' geometry in: build it with geometry " \
                     "= 'input' to vary it)"
+            elif field.endswith(f".{FOOTPAD_FIELD.name}"):
+                extra = " (the scene's feet are points: a scene without pads builds no pad " \
+                    "terms; give a leg a `footpad` > 0 to vary it)"
             raise KeyError(f"`p` has no field {field!r}{extra}; fields: "
                            f"{list(self._scene) + list(self._geometry)}.")
         return self._scene[field]
@@ -545,11 +568,26 @@ class ParamLayout:
             raise KeyError(f"`p` has no entry {name!r}; entries: {list(self.names)}.") from None
 
 
+def has_footpads(scene) -> bool:
+    """True if some leg of ``scene`` has a footpad (radius > 0)."""
+    return any(leg.footpad > 0 for leg in scene.legs)
+
+
+def footpads(scene, lay: ParamLayout, p) -> list:
+    """Each leg's footpad radius (m): its entry of ``p`` where ``lay`` has one, else the
+    leg's own (a Python float, 0.0 for a point foot, whose expressions then carry no
+    pad term)."""
+    if lay.footpads:
+        return [lay.footpad(p, j) for j in range(len(scene.legs))]
+    return [leg.footpad for leg in scene.legs]
+
+
 def param_layout(scene, geometry: bool = True) -> ParamLayout:
     """The :class:`ParamLayout` of a scene (μ an entry only when ``scene.mu > 0``; the
-    legs' geometry entries unless ``geometry`` is False)."""
+    legs' geometry entries unless ``geometry`` is False, and their footpads when some
+    leg has one)."""
     return ParamLayout([leg.param_names for leg in scene.legs], scene.mu > 0, geometry,
-                       [leg.geometry_fields for leg in scene.legs])
+                       [leg.geometry_fields for leg in scene.legs], has_footpads(scene))
 
 
 def default_p(scene, geometry: bool = True) -> np.ndarray:
@@ -569,6 +607,9 @@ def default_p(scene, geometry: bool = True) -> np.ndarray:
                 block = values[start:start + f.size]
                 overrides[f"leg{j}.{f.name}"] = block if f.axes else float(block[0])
                 start += f.size
+    if lay.footpads:
+        for j, leg in enumerate(scene.legs):
+            overrides[f"leg{j}.{FOOTPAD_FIELD.name}"] = leg.footpad
     return lay.pack(base, **overrides)
 
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import casadi as ca
 
-from .layout import one_minus_cos_tilt, output_layout, param_layout, state_layout
+from .layout import footpads, one_minus_cos_tilt, output_layout, param_layout, state_layout
 from .obstacles import closest_obstacle
 
 __all__ = ["MEASURES", "measures_function"]
@@ -31,7 +31,8 @@ MEASURES = {
                           "vertical −g/|g| (world z without gravity; smooth at zero tilt)",
     "upward_speed": "(1,) m/s, velocity of the centre of mass along −g/|g|",
     "contact": "(N,) 1 for a foot in contact at the end of the step",
-    "penetration": "(N,) m, depth of each foot below the obstacle surface (≥ 0)",
+    "penetration": "(N,) m, depth of each foot below the obstacle surface (≥ 0; a footpad's "
+                   "below the surface offset by its radius)",
 }
 
 
@@ -64,8 +65,9 @@ def measures_function(scene) -> ca.Function:
     tilt = one_minus_cos_tilt(xl.get(x, "attitude"), up)
     v_up = ca.dot(up, xl.get(x, "velocity"))
     depth = []
+    pads = footpads(scene, pl, p)
     for j in range(n_legs):
-        d, _, _ = closest_obstacle(scene.obstacles, xl.get(x, "foot", j))
+        d, _, _ = closest_obstacle(scene.obstacles, xl.get(x, "foot", j), pads[j])
         depth.append(ca.fmax(-d, 0.0))
 
     def legs(field):

@@ -191,8 +191,8 @@ class RunMonitor:
             self._add(out, "body_inside", "error", t[i], f"the body centre is inside an obstacle "
                       f"at t = {t[i]:.6g} s ({-d_body[i]:.3g} m deep): the legs did not hold it.",
                       value=-d_body[i])
-        for j in range(len(scene.legs)):
-            d_foot = _distances(scene, feet[j]).min(axis=0)
+        for j, leg in enumerate(scene.legs):
+            d_foot = _distances(scene, feet[j], leg.footpad).min(axis=0)
             if np.min(d_foot) < -tol:
                 i = int(np.argmax(d_foot < -tol))
                 self._add(out, "penetration", "warning", t[i], f"foot of leg {j} is "

@@ -11,6 +11,19 @@ world point x:
 * ``project(x)`` — a point on the surface near x (the foot's contact point
   after a step along the tangent plane).
 
+Each takes an optional ``pad`` a ≥ 0 (m, a float or a CasADi scalar): the
+same three for the obstacle's *offset surface* at distance a, on which the
+centre of a footpad of radius a slides (docs/footpads.md). The offset is
+exact for a plane (the plane moved by a along its normal) and a sphere
+(radius R + a); for an implicit surface and a terrain it is the zero set of
+
+    ψ(x) = φ(x) − a |∇φ(x)|,
+
+exact where φ is a signed distance (|∇φ| = 1) or a plane's height field,
+and within O(a²κ) of the true offset where the surface bends (κ its
+curvature). ``pad = 0`` (a Python number) builds the expressions of a point
+foot, node for node.
+
 This module owns obstacle geometry only; it knows nothing of legs or contact.
 """
 from __future__ import annotations
@@ -36,6 +49,15 @@ PROJECTION_ITERS = 2
 _GRAD_GUARD = 1e-300
 
 
+def _padded(pad) -> bool:
+    """False for a point foot given as a Python or NumPy zero: its expressions are
+    built without a pad term, so a scene without pads keeps its graph node for node.
+    A CasADi symbol is a pad whatever its value."""
+    if isinstance(pad, (int, float, np.integer, np.floating)) and not isinstance(pad, bool):
+        return pad != 0
+    return True
+
+
 def _vec3(name, value):
     return vector(name, value, (3,))
 
@@ -45,13 +67,13 @@ class Obstacle:
 
     kind = "obstacle"
 
-    def distance(self, x):  # pragma: no cover - abstract
+    def distance(self, x, pad=0.0):  # pragma: no cover - abstract
         raise NotImplementedError
 
-    def normal(self, x):  # pragma: no cover - abstract
+    def normal(self, x, pad=0.0):  # pragma: no cover - abstract
         raise NotImplementedError
 
-    def project(self, x):  # pragma: no cover - abstract
+    def project(self, x, pad=0.0):  # pragma: no cover - abstract
         raise NotImplementedError
 
 
@@ -70,14 +92,15 @@ class Plane(Obstacle):
         angle = real("angle", angle, unit="rad")
         return cls(point, (np.sin(angle), 0.0, np.cos(angle)))
 
-    def distance(self, x):
-        return ca.dot(ca.DM(self.n), x - ca.DM(self.point))
+    def distance(self, x, pad=0.0):
+        d = ca.dot(ca.DM(self.n), x - ca.DM(self.point))
+        return d - pad if _padded(pad) else d                   # the plane moved by a
 
-    def normal(self, x):
+    def normal(self, x, pad=0.0):
         return ca.DM(self.n) + 0 * x
 
-    def project(self, x):
-        return x - self.distance(x) * ca.DM(self.n)
+    def project(self, x, pad=0.0):
+        return x - self.distance(x, pad) * ca.DM(self.n)
 
 
 class Sphere(Obstacle):
@@ -97,14 +120,18 @@ class Sphere(Obstacle):
         direction = ca.if_else(dist > 0, d / safe, ca.DM([0, 0, 1]))
         return dist, direction
 
-    def distance(self, x):
-        return ca.norm_2(x - ca.DM(self.center)) - self.radius
+    def _radius(self, pad):
+        """R, or R + a with a pad: the offset of a ball is the concentric ball."""
+        return self.radius + pad if _padded(pad) else self.radius
 
-    def normal(self, x):
+    def distance(self, x, pad=0.0):
+        return ca.norm_2(x - ca.DM(self.center)) - self._radius(pad)
+
+    def normal(self, x, pad=0.0):
         return self._offset(x)[1]
 
-    def project(self, x):
-        return ca.DM(self.center) + self.radius * self._offset(x)[1]
+    def project(self, x, pad=0.0):
+        return ca.DM(self.center) + self._radius(pad) * self._offset(x)[1]
 
 
 class ImplicitSurface(Obstacle):
@@ -135,29 +162,47 @@ class ImplicitSurface(Obstacle):
         grad = ca.gradient(expr, x)
         self._phi = ca.Function("phi", [x], [expr])
         self._grad = ca.Function("grad_phi", [x], [grad])
+        self._offset_functions = None   # ψ and ∇ψ of a pad, built at its first use
 
     @property
     def functions(self) -> dict:
         """``phi(x) -> φ`` and ``grad_phi(x) -> ∇φ``: CasADi Functions of a 3-vector (m)."""
         return {"phi": self._phi, "grad_phi": self._grad}
 
-    def _grad_safe(self, x):
-        g = self._grad(x)
+    def _offset(self):
+        """``phi_offset(x, a) -> ψ`` and ``grad_phi_offset(x, a) -> ∇ψ`` of the offset
+        surface ψ = φ − a|∇φ| = 0 (its gradient carries φ's Hessian, by AD)."""
+        if self._offset_functions is None:
+            x, a = ca.SX.sym("x", 3), ca.SX.sym("a")
+            grad = self._grad(x)
+            psi = self._phi(x) - a * ca.sqrt(ca.dot(grad, grad))
+            self._offset_functions = (
+                ca.Function("phi_offset", [x, a], [psi], ["x", "a"], ["psi"]),
+                ca.Function("grad_phi_offset", [x, a], [ca.gradient(psi, x)], ["x", "a"],
+                            ["grad_psi"]))
+        return self._offset_functions
+
+    def _value(self, x, pad):
+        """φ(x), or ψ(x) of the offset surface at distance ``pad``."""
+        return self._offset()[0](x, pad) if _padded(pad) else self._phi(x)
+
+    def _grad_safe(self, x, pad=0.0):
+        g = self._offset()[1](x, pad) if _padded(pad) else self._grad(x)
         g2 = ca.dot(g, g)
         return g, ca.if_else(g2 > _GRAD_GUARD, g2, 1.0)
 
-    def distance(self, x):
-        g, g2 = self._grad_safe(x)
-        return self._phi(x) / ca.sqrt(g2)
+    def distance(self, x, pad=0.0):
+        g, g2 = self._grad_safe(x, pad)
+        return self._value(x, pad) / ca.sqrt(g2)
 
-    def normal(self, x):
-        g, g2 = self._grad_safe(self.project(x))
+    def normal(self, x, pad=0.0):
+        g, g2 = self._grad_safe(self.project(x, pad), pad)
         return g / ca.sqrt(g2)
 
-    def project(self, x):
+    def project(self, x, pad=0.0):
         for _ in range(PROJECTION_ITERS):
-            g, g2 = self._grad_safe(x)
-            x = x - self._phi(x) * g / g2
+            g, g2 = self._grad_safe(x, pad)
+            x = x - self._value(x, pad) * g / g2
         return x
 
 
@@ -223,20 +268,23 @@ class Terrain(ImplicitSurface):
         return cls(g, g, H)
 
 
-def closest_obstacle(obstacles: Sequence[Obstacle], x):
+def closest_obstacle(obstacles: Sequence[Obstacle], x, pad=0.0):
     """Distance, normal and projection of x for the nearest of several obstacles.
 
     Branch-free: every obstacle is evaluated and the one with the smallest
-    signed distance is selected with ``casadi.if_else``.
+    signed distance is selected with ``casadi.if_else``. With ``pad`` a (m),
+    the obstacles' offset surfaces at distance a: x is the centre of a
+    footpad of radius a, ``dist`` its clearance and ``proj`` where its centre
+    sits on the offset surface (the contact point is ``proj − a·normal``).
     """
     if not obstacles:
         raise ValueError("`obstacles` is empty; a scene needs at least one obstacle.")
     best = obstacles[0]
-    dist, normal, proj = best.distance(x), best.normal(x), best.project(x)
+    dist, normal, proj = best.distance(x, pad), best.normal(x, pad), best.project(x, pad)
     for ob in obstacles[1:]:
-        d = ob.distance(x)
+        d = ob.distance(x, pad)
         nearer = d < dist
-        normal = ca.if_else(nearer, ob.normal(x), normal)
-        proj = ca.if_else(nearer, ob.project(x), proj)
+        normal = ca.if_else(nearer, ob.normal(x, pad), normal)
+        proj = ca.if_else(nearer, ob.project(x, pad), proj)
         dist = ca.if_else(nearer, d, dist)
     return dist, normal, proj

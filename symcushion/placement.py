@@ -43,22 +43,32 @@ def _rotation(q) -> np.ndarray:
                      [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
 
 
-def _distance(scene: Scene) -> ca.Function:
+def _distance(scene: Scene, pad: float = 0.0) -> ca.Function:
     p = ca.SX.sym("p", 3)
-    return ca.Function("foot_distance", [p], [closest_obstacle(scene.obstacles, p)[0]],
+    return ca.Function("foot_distance", [p], [closest_obstacle(scene.obstacles, p, pad)[0]],
                        ["p"], ["d"])
 
 
-def feet_clearance(scene: Scene, _dist: ca.Function | None = None) -> np.ndarray:
+def _distances(scene: Scene) -> dict:
+    """``foot_distance`` of each footpad radius of the scene's legs, by radius."""
+    return {pad: _distance(scene, pad) for pad in sorted({leg.footpad for leg in scene.legs})}
+
+
+def feet_clearance(scene: Scene, _dist: dict | None = None) -> np.ndarray:
     """Signed distance (m) of each unloaded foot from the nearest obstacle, shape (N,).
 
     Positive outside the obstacle, negative inside; the body at its scene
-    position and attitude.
+    position and attitude. A foot with a footpad of radius a gives the pad's
+    clearance: its centre's distance less a (docs/footpads.md).
     """
     R = _rotation(scene.body.attitude)
-    dist = _distance(scene) if _dist is None else _dist
+    dist = _distances(scene) if _dist is None else _dist
     feet = scene.body.position + np.array([R @ leg.rest_foot for leg in scene.legs])
-    return np.asarray(dist.map(len(feet))(feet.T), dtype=float).ravel()
+    out = np.empty(len(feet))
+    for pad, fn in dist.items():
+        legs = [j for j, leg in enumerate(scene.legs) if leg.footpad == pad]
+        out[legs] = np.asarray(fn.map(len(legs))(feet[legs].T), dtype=float).ravel()
+    return out
 
 
 def place_on_obstacle(scene: Scene, attitude=None, clearance: float = 0.0) -> Scene:
@@ -90,7 +100,7 @@ def place_on_obstacle(scene: Scene, attitude=None, clearance: float = 0.0) -> Sc
     body = scene.body if attitude is None else replace(scene.body, attitude=attitude)
     up = _up(scene)
     base = replace(scene, body=body)
-    dist = _distance(scene)
+    dist = _distances(scene)
 
     def gap(s):
         moved = replace(base, body=replace(body, position=body.position + s * up))

@@ -257,14 +257,16 @@ class Scene:
 def symmetric_legs(count: int, radius: float, height: float, length: float, e0_local,
                    en_local, S: Curve | None = None, M_beta: Curve | None = None,
                    M_gamma: Curve | None = None, azimuth0: float = 0.0,
-                   axial_ratio: float | None = None, law: str = "paper") -> list:
+                   axial_ratio: float | None = None, law: str = "paper",
+                   footpad: float = 0.0) -> list:
     """``count`` identical legs spaced evenly about the body's z axis.
 
     Leg i has its hinge at azimuth φ_i = azimuth0 + 2πi/count, at ``radius``
     from the axis and ``height`` along z. Its rest direction and polar axis
     are given in the leg's local frame (radial, tangential, z), e.g.
     ``e0_local=(0, 0, -1)`` for a rod hanging straight down. ``law``: the
-    force law of every leg (``HingedStrut``'s, ``"paper"`` or ``"potential"``).
+    force law of every leg (``HingedStrut``'s, ``"paper"`` or ``"potential"``);
+    ``footpad``: every leg's footpad radius (m, 0 for point feet).
 
     Returns
     -------
@@ -283,7 +285,7 @@ def symmetric_legs(count: int, radius: float, height: float, length: float, e0_l
         kwargs = {} if axial_ratio is None else {"axial_ratio": axial_ratio}
         legs.append(HingedStrut(hinge=radius * radial + height * up, e0=frame @ e0_local,
                                 en=frame @ en_local, length=length, S=S, M_beta=M_beta,
-                                M_gamma=M_gamma, law=law, **kwargs))
+                                M_gamma=M_gamma, law=law, footpad=footpad, **kwargs))
     return legs
 
 
@@ -303,12 +305,14 @@ _CURVE_KEYS = ("type", "smooth", "tunable", "unloading", "stiffness", "preload",
 
 
 def symmetric_tripods(count: int, h1, h2, h3, foot, outer_length: float, primary: Curve,
-                      secondary2: Curve, secondary3: Curve, azimuth0: float = 0.0) -> list:
+                      secondary2: Curve, secondary3: Curve, azimuth0: float = 0.0,
+                      footpad: float = 0.0) -> list:
     """``count`` identical inverted-tripod legs evenly spaced about the body's z axis.
 
     Leg 0's hardpoints ``h1``, ``h2``, ``h3`` and rest ``foot`` are given in
     body axes at azimuth 0 (its plane of symmetry is usually x–z); leg i is
-    leg 0 turned about z by φ_i = azimuth0 + 2πi/count.
+    leg 0 turned about z by φ_i = azimuth0 + 2πi/count; ``footpad``: every leg's
+    footpad radius (m, 0 for point feet).
 
     Returns
     -------
@@ -323,7 +327,7 @@ def symmetric_tripods(count: int, h1, h2, h3, foot, outer_length: float, primary
         turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
         legs.append(InvertedTripod(*(turn @ v for v in points), outer_length=outer_length,
                                    primary=primary, secondary2=secondary2,
-                                   secondary3=secondary3))
+                                   secondary3=secondary3, footpad=footpad))
     return legs
 
 
@@ -400,7 +404,7 @@ def _elements(table: Table):
 
 
 _LEGS_KEYS = ("scheme", "count", "radius", "height", "length", "e0", "en", "azimuth0",
-              "axial_ratio", "law", "S", "M_beta", "M_gamma")
+              "axial_ratio", "law", "footpad", "S", "M_beta", "M_gamma")
 
 
 def _legs(top: Table) -> list:
@@ -419,6 +423,7 @@ def _legs(top: Table) -> list:
                     t.get("en", kind="vector", size=3))
             els["azimuth0"] = t.get("azimuth0", 0.0)
             els["law"] = t.get("law", "paper", kind="string", choices=LAWS)
+            els["footpad"] = t.get("footpad", 0.0, nonnegative=True)
             t.finish(known=_LEGS_KEYS)
             legs.append(_build(t, symmetric_legs, *args, **els))
     if top.has("leg"):
@@ -432,10 +437,11 @@ def _legs(top: Table) -> list:
             if t.has("axial_ratio"):
                 els["axial_ratio"] = t.get("axial_ratio", positive=True)
             els["law"] = t.get("law", "paper", kind="string", choices=LAWS)
+            els["footpad"] = t.get("footpad", 0.0, nonnegative=True)
             args = (t.get("hinge", kind="vector", size=3), t.get("e0", kind="vector", size=3),
                     t.get("en", kind="vector", size=3), t.get("length", positive=True))
             t.finish(known=("scheme", "hinge", "e0", "en", "length", "axial_ratio", "law",
-                            "S", "M_beta", "M_gamma"))
+                            "footpad", "S", "M_beta", "M_gamma"))
             leg = _build(t, HingedStrut, *args, **els)
             legs.append(leg if leg is INVALID else [leg])
     top.used.update(("legs", "leg"))
@@ -454,11 +460,12 @@ def _tripods(t: Table):
     args += tuple(t.get(k, kind="vector", size=3) for k in ("h1", "h2", "h3", "foot"))
     args += (t.get("outer_length", positive=True),)
     azimuth0 = t.get("azimuth0", 0.0)
-    t.finish(known=("scheme", "count", "h1", "h2", "h3", "foot", "outer_length", "azimuth0")
-             + TRIPOD_ELEMENTS)
+    footpad = t.get("footpad", 0.0, nonnegative=True)
+    t.finish(known=("scheme", "count", "h1", "h2", "h3", "foot", "outer_length", "azimuth0",
+                    "footpad") + TRIPOD_ELEMENTS)
     if any(c is INVALID for c in curves.values()):
         return INVALID
-    return _build(t, symmetric_tripods, *args, azimuth0=azimuth0, **curves)
+    return _build(t, symmetric_tripods, *args, azimuth0=azimuth0, footpad=footpad, **curves)
 
 
 def _tripod(t: Table):
@@ -466,10 +473,12 @@ def _tripod(t: Table):
     curves = {name: _curve(t.get(name, kind="table")) for name in TRIPOD_ELEMENTS}
     args = tuple(t.get(k, kind="vector", size=3) for k in ("h1", "h2", "h3", "foot"))
     args += (t.get("outer_length", positive=True),)
-    t.finish(known=("scheme", "h1", "h2", "h3", "foot", "outer_length") + TRIPOD_ELEMENTS)
+    footpad = t.get("footpad", 0.0, nonnegative=True)
+    t.finish(known=("scheme", "h1", "h2", "h3", "foot", "outer_length", "footpad")
+             + TRIPOD_ELEMENTS)
     if any(c is INVALID for c in curves.values()):
         return INVALID
-    return _build(t, InvertedTripod, *args, **curves)
+    return _build(t, InvertedTripod, *args, footpad=footpad, **curves)
 
 
 _OBSTACLES = ("plane", "sphere", "implicit", "terrain")

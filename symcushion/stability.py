@@ -12,7 +12,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from .layout import default_p, quat_exp, quat_to_rot, quat_to_rot_np, state_layout
+from .layout import quat_exp, quat_to_rot, quat_to_rot_np, state_layout
 from .touchdown import StepModel, _leg_params
 
 __all__ = ["STABILITY_SAFETY", "stable_dt"]
@@ -77,7 +77,7 @@ def stable_dt(model: StepModel, x, p=None) -> float:
     x = np.asarray(x, dtype=float).ravel()
     if x.shape != (model.nx,):
         raise ValueError(f"`x` must have shape ({model.nx},), got {x.shape}.")
-    p = default_p(model.scene) if p is None else np.asarray(p, dtype=float)
+    p = model.default_p if p is None else np.asarray(p, dtype=float)
     K = np.asarray(_body_stiffness(model)(x, p), dtype=float)
     R = quat_to_rot_np(state_layout(model.n_legs).get(x, "attitude"))
     body = model.scene.body

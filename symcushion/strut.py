@@ -214,6 +214,10 @@ class HingedStrut:
         ``"paper"``: (2.1) as printed. ``"potential"``: P = f_S ∇δ_S + f_β ∇β
         + f_γ ∇(γ − γ₀), the gradients by AD, the same deflections, curves and
         signs; for elastic curves P = ∇U and D_p is symmetric (docs/strut.md).
+    footpad : float
+        Radius a ≥ 0 of the footpad (m): the foot r is the pad's centre, which
+        touches the obstacle's surface offset by a (docs/footpads.md); 0, the
+        default, is a point foot. The strut's force law does not read it.
 
     Examples
     --------
@@ -227,7 +231,8 @@ class HingedStrut:
 
     def __init__(self, hinge, e0, en, length, S: Optional[Curve] = None,
                  M_beta: Optional[Curve] = None, M_gamma: Optional[Curve] = None,
-                 axial_ratio: float = RIGID_AXIAL_RATIO, law: str = "paper"):
+                 axial_ratio: float = RIGID_AXIAL_RATIO, law: str = "paper",
+                 footpad: float = 0.0):
         if law not in LAWS:
             raise ValueError(f"`law` must be one of {LAWS}, got {law!r}; \"paper\" is (2.1) as "
                              "printed, \"potential\" its energy-consistent form.")
@@ -236,6 +241,7 @@ class HingedStrut:
         self.e0 = _vector("e0", e0, unit=True)
         self.en = _vector("en", en, unit=True)
         self.length = real("length", length, positive=True, unit="m")
+        self.footpad = real("footpad", footpad, nonnegative=True, unit="m")
         cos0 = _check_angle(self.e0, self.en)
         for name, curve in (("S", S), ("M_beta", M_beta), ("M_gamma", M_gamma)):
             if curve is not None and not isinstance(curve, Curve):

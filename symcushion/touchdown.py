@@ -80,10 +80,11 @@ import numpy as np
 from .branch_switch import branch_flip, branch_switch_kick, locates_switch
 from .foot_step import FeetStep, LegInput, StepPoses
 from .layout import (BODY_OUT, BODY_STATE, LEG_OUT, LEG_STATE, MODES, ParamLayout, default_p,
-                     output_layout, param_layout, quat_exp, quat_mul, quat_to_rot,
+                     footpads, output_layout, param_layout, quat_exp, quat_mul, quat_to_rot,
                      quat_to_rot_np, state_layout)
 from .obstacles import closest_obstacle
 from .scene import Scene
+from .validation import real
 from .strut import GEOMETRY_MODES, bound_geometry
 from .stroke_lock import (LOCKED, UNLOADING, any_of, axial_branches, bending_force, inside_cone,
                           newton_masked, skip_unless, solve_masked, stroke_acceleration,
@@ -121,7 +122,8 @@ class StepModel:
         parameters, then the scene's ``mu`` (friction scenes only),
         ``gravity.x/y/z``, ``mass`` and ``inertia.xx/yy/zz/xy/xz/yz``, then
         (geometry as inputs, the default) each leg's ``leg{j}.hinge.x/y/z``,
-        ``leg{j}.e0.x/y/z``, ``leg{j}.en.x/y/z`` and ``leg{j}.length``
+        ``leg{j}.e0.x/y/z``, ``leg{j}.en.x/y/z`` and ``leg{j}.length``, and, in a
+        scene where some leg has a footpad, each leg's ``leg{j}.footpad``
         (:class:`~symcushion.layout.ParamLayout`).
     params : ParamLayout
         The layout of ``p`` (read and write its entries by name).
@@ -186,13 +188,12 @@ class StepModel:
     def check_params(self, p) -> None:
         """Refuse a ``p`` whose leg geometry the built step cannot take: a length ≤ 0,
         a zero direction, e₀ within 1° of e_n or of the plane ⊥ e_n, or a flipped
-        sign(e₀·e_n) (``HingedStrut.check_geometry``). Nothing to check when the
-        geometry is baked in."""
+        sign(e₀·e_n) (``HingedStrut.check_geometry``), or a negative footpad radius.
+        Nothing to check when the geometry is baked in."""
         if self.params is None or not self.params.geometry:
             return
         p = np.asarray(p, dtype=float).ravel()
-        for j, leg in enumerate(self.scene.legs):
-            leg.check_geometry_block(self.params.leg_geometry(p, j), where=f"`p` of leg {j}: ")
+        _check_geometry_entries(self.scene, self.params, p)
 
     @property
     def n_legs(self):
@@ -204,6 +205,15 @@ class StepModel:
         need them."""
         return {"instructions": self.step.n_instructions(), "nodes": self.step.n_nodes(),
                 "gated": sum(f.n_instructions() for f in self.gated.values())}
+
+
+def _check_geometry_entries(scene: Scene, lay: ParamLayout, p) -> None:
+    """The legs' geometry blocks and footpads of a 1-D ``p`` with geometry entries."""
+    for j, leg in enumerate(scene.legs):
+        leg.check_geometry_block(lay.leg_geometry(p, j), where=f"`p` of leg {j}: ")
+    if lay.footpads:
+        for j in range(len(scene.legs)):
+            real(f"leg{j}.footpad", float(lay.footpad(p, j)), nonnegative=True, unit="m")
 
 
 def _leg_params(scene: Scene, geometry: bool = True):
@@ -242,14 +252,14 @@ def _memory_state(res) -> dict:
                 element_chord=chords[1:])
 
 
-def _memory_leg_input(leg, fns, p_leg, foot, rho0, h) -> LegInput:
+def _memory_leg_input(leg, fns, p_leg, foot, rho0, h, pad=0.0) -> LegInput:
     """A leg on the memory law in the step: its free foot at the start is where it
     relaxed to, at the end where it relaxes to over the step (symcushion.absorber)."""
     sets = ca.vertcat(foot["stroke_set"], foot["element_set"])
     chords = ca.vertcat(foot["stroke_chord"], foot["element_chord"])
     rest = fns["strut_free_foot"](sets, p_leg, fns["strut_deflections"](rho0, p_leg), chords, h)
     return LegInput(strut=leg, fns=fns, p_leg=p_leg, rest=rest, foot=foot, rho0=rho0,
-                    sets=sets, chords=chords, rest_start=rho0)
+                    sets=sets, chords=chords, rest_start=rho0, pad=pad)
 
 
 def build_model(scene: Scene, geometry: str = "input") -> StepModel:
@@ -262,7 +272,9 @@ def build_model(scene: Scene, geometry: str = "input") -> StepModel:
     (the scene's as defaults), so one step serves every geometry with the
     same discrete choices (the scene's orientation signs sign(e₀·e_n), which
     :meth:`StepModel.check_params` enforces); ``"constant"``: they are baked
-    into the graph.
+    into the graph. So are the legs' footpad radii: entries of ``p`` in a
+    scene where some leg has a pad (a point foot's is then 0), constants
+    otherwise; a scene of point feet has no pad terms in its graph.
     """
     if geometry not in GEOMETRY_MODES:
         raise ValueError(f"`geometry` must be one of {GEOMETRY_MODES}, got {geometry!r}.")
@@ -304,6 +316,7 @@ def build_model(scene: Scene, geometry: str = "input") -> StepModel:
             fns["strut_geometry"] = bound_geometry(fns["strut_geometry"], p_leg)
     rest = [leg.rest_foot_expr(p_leg) if inputs else ca.DM(leg.rest_foot)
             for leg, p_leg in zip(legs, p_of)]
+    pads = footpads(scene, params, p)
 
     R = quat_to_rot(quat)
 
@@ -360,10 +373,10 @@ def build_model(scene: Scene, geometry: str = "input") -> StepModel:
     feet_step = FeetStep(scene, StepPoses(h=h, pos=pos, quat=quat, R=R, vel=vel, omega=omega,
                                           vel_h=vel_h, omega_h=omega_h, pos1=pos1, R1=R1),
                          mu, [X, p, h])
-    leg_in = [_memory_leg_input(legs[j], fns_of[j], p_of[j], feet[j], rho0[j], h)
+    leg_in = [_memory_leg_input(legs[j], fns_of[j], p_of[j], feet[j], rho0[j], h, pads[j])
               if memory[j] else
               LegInput(strut=legs[j], fns=fns_of[j], p_leg=p_of[j], rest=rest[j], foot=feet[j],
-                       rho0=rho0[j]) for j in range(n_legs)]
+                       rho0=rho0[j], pad=pads[j]) for j in range(n_legs)]
 
     res, release_loading = [], {}
     stored_loading = {j: feet[j]["contact"] < 2.5 for j in lockable}
@@ -618,7 +631,7 @@ def initial_state(scene: Scene, p=None) -> np.ndarray:
     b = scene.body
     R = _rot_np(b.attitude)
     n = len(scene.legs)
-    _, _, rest = _legs_at(scene, p)
+    _, _, rest, _ = _legs_at(scene, p)
     return state_layout(n).pack(
         position=b.position, velocity=b.velocity, attitude=b.attitude,
         angular_velocity=b.angular_velocity,
@@ -627,8 +640,8 @@ def initial_state(scene: Scene, p=None) -> np.ndarray:
 
 
 def _legs_at(scene: Scene, p=None):
-    """(Functions, p, rest foot) of every leg for a step's ``p``: with its geometry
-    block when ``p`` has one, else (and for None) the scene's own geometry."""
+    """(Functions, p, rest foot, footpad) of every leg for a step's ``p``: with its
+    geometry block when ``p`` has one, else (and for None) the scene's own geometry."""
     with_geometry = param_layout(scene, True)
     if p is None:
         p = default_p(scene, geometry=False)
@@ -641,13 +654,12 @@ def _legs_at(scene: Scene, p=None):
     fns = [leg.functions(mode) for leg in scene.legs]
     p_legs = [lay.leg_inputs(p, j) for j in range(len(scene.legs))]
     if lay.geometry:
-        for j, leg in enumerate(scene.legs):
-            leg.check_geometry_block(lay.leg_geometry(p, j), where=f"`p` of leg {j}: ")
+        _check_geometry_entries(scene, lay, p)
         rest = [np.asarray(ca.evalf(leg.rest_foot_expr(ca.DM(p_leg))), dtype=float).ravel()
                 for leg, p_leg in zip(scene.legs, p_legs)]
     else:
         rest = [leg.rest_foot for leg in scene.legs]
-    return fns, p_legs, rest
+    return fns, p_legs, rest, [float(a) for a in footpads(scene, lay, p)]
 
 
 def _rot_np(q):
@@ -655,11 +667,12 @@ def _rot_np(q):
     return quat_to_rot_np(q, normalise=False)
 
 
-def _drop_point(obstacles, free, direction, iterations=20):
-    """Where the line free + s·direction first meets the obstacle (Newton in s)."""
+def _drop_point(obstacles, free, direction, iterations=20, pad=0.0):
+    """Where the line free + s·direction first meets the obstacle (its offset surface
+    at distance ``pad``), by Newton in s."""
     point = ca.DM(free)
     for _ in range(iterations):
-        d, n, _ = closest_obstacle(obstacles, point)
+        d, n, _ = closest_obstacle(obstacles, point, pad)
         slope = float(ca.evalf(ca.dot(n, ca.DM(direction))))
         if abs(slope) < 1e-9:
             raise ValueError("cannot drop a foot onto the obstacle: the drop direction is "
@@ -692,13 +705,13 @@ def equilibrium_state(scene: Scene, acceleration=(0.0, 0.0, 0.0), p=None,
         raise ValueError(f"`placement` must be 'gravity' or 'nearest', got {placement!r}.")
     pts = []
     down = scene.gravity / np.linalg.norm(scene.gravity)
-    fns, p_legs, rest = _legs_at(scene, p)
-    for rest_j in rest:
+    fns, p_legs, rest, pads = _legs_at(scene, p)
+    for rest_j, pad in zip(rest, pads):
         free = b.position + R0 @ rest_j
         if placement == "gravity":
-            pts.append(_drop_point(scene.obstacles, free, down))
+            pts.append(_drop_point(scene.obstacles, free, down, pad=pad))
         else:
-            _, _, proj = closest_obstacle(scene.obstacles, ca.DM(free))
+            _, _, proj = closest_obstacle(scene.obstacles, ca.DM(free), pad)
             pts.append(np.asarray(ca.evalf(proj)).ravel())
     z = ca.SX.sym("z", 6 if solve_attitude else 3)
     x = z[0:3]

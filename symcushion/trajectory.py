@@ -17,7 +17,8 @@ from .obstacles import closest_obstacle
 from .layout import MODES, output_layout, quat_to_rot_np, state_layout
 from .touchdown import StepModel
 
-__all__ = ["Trajectory", "trajectory_from", "initial_output", "UP_WITHOUT_GRAVITY"]
+__all__ = ["Trajectory", "trajectory_from", "initial_output", "contact_points",
+           "UP_WITHOUT_GRAVITY"]
 
 #: "Up" when gravity is zero (angles from the vertical need a direction).
 UP_WITHOUT_GRAVITY = np.array([0.0, 0.0, 1.0])
@@ -223,7 +224,7 @@ def initial_output(model: StepModel, x0) -> np.ndarray:
         geo = leg.functions()["strut_geometry"](r=rho)
         normal = np.zeros(3)
         if touching:
-            _, n, _ = closest_obstacle(scene.obstacles, ca.DM(x["foot"][j]))
+            _, n, _ = closest_obstacle(scene.obstacles, ca.DM(x["foot"][j]), leg.footpad)
             normal = np.asarray(ca.evalf(n), dtype=float).ravel()
         for name, value in (("in_contact", float(touching)), ("mode", 1.0 if touching else 0.0),
                             ("force", R @ x["force_body"][j]), ("normal", normal),
@@ -233,6 +234,23 @@ def initial_output(model: StepModel, x0) -> np.ndarray:
     acc0 = scene.gravity + R @ x["force_body"].sum(axis=0) / scene.body.mass
     return np.asarray(output_layout(model.n_legs).pack(acceleration=acc0, **legs),
                       dtype=float).ravel()
+
+
+def contact_points(traj: Trajectory, footpads) -> np.ndarray:
+    """Where each foot's pad touches the obstacle: r − a·n, shape (T, N, 3) (m, world).
+
+    ``traj.foot`` is the pad's centre r and ``traj.normal`` the unit normal of
+    the contact (0 for a free foot, whose point is then its centre);
+    ``footpads`` the legs' radii a (m, shape (N,): ``[leg.footpad for leg in
+    scene.legs]``). Exact on planes and spheres; on implicit surfaces and
+    terrain within the offset's first-order error of the surface
+    (docs/footpads.md).
+    """
+    a = np.asarray(footpads, dtype=float)
+    if a.shape != (traj.n_legs,) or not np.all(np.isfinite(a)) or np.any(a < 0):
+        raise ValueError(f"`footpads` must be {traj.n_legs} finite radii >= 0 (m), one per leg, "
+                         f"got {a.tolist()}.")
+    return traj.foot - a[None, :, None] * traj.normal
 
 
 def trajectory_from(model: StepModel, x0, X, Y, t) -> Trajectory:

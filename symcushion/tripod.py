@@ -22,7 +22,7 @@ branch is selected by the sign of q_i·q̇_i with q̇ = J v (v: the foot's
 velocity relative to the body).
 
 Leg-scheme interface. A leg scheme is a class with ``param_names``,
-``param_values``, ``rest_foot``, ``length``, ``hinge``, ``elements`` and
+``param_values``, ``rest_foot``, ``length``, ``hinge``, ``footpad``, ``elements`` and
 ``functions()``, whose dict holds at least ``strut_geometry(r) -> (L,
 delta_S, e_S, ...)``, ``strut_force(r, v, p) -> P`` and ``strut_stiffness(r,
 v, p) -> Dp``. :class:`InvertedTripod` provides those three under the
@@ -153,6 +153,10 @@ class InvertedTripod:
         Resistance curves of the primary stroke δ_S and of the secondary
         deflections δ₂, δ₃ (N vs m, extension positive); a
         :class:`~symcushion.characteristics.TwoSided` curve crushes both ways.
+    footpad : float
+        Radius a ≥ 0 of the footpad (m): ``foot`` is the pad's centre, which
+        touches the obstacle's surface offset by a (docs/footpads.md); 0, the
+        default, is a point foot.
 
     Examples
     --------
@@ -165,11 +169,12 @@ class InvertedTripod:
     """
 
     def __init__(self, h1, h2, h3, foot, outer_length, primary: Curve,
-                 secondary2: Curve, secondary3: Curve):
+                 secondary2: Curve, secondary3: Curve, footpad: float = 0.0):
         self.h1, self.h2, self.h3 = (vector(n, v, (3,)) for n, v in
                                      (("h1", h1), ("h2", h2), ("h3", h3)))
         self.foot = vector("foot", foot, (3,))
         self.outer_length = real("outer_length", outer_length, positive=True, unit="m")
+        self.footpad = real("footpad", footpad, nonnegative=True, unit="m")
         self.length = float(np.linalg.norm(self.foot - self.h1))
         if not self.length > 0:
             raise ValueError(f"`foot` = {self.foot.tolist()} is at the hardpoint `h1`: the "

@@ -225,7 +225,7 @@ class DesignProblem(_DesignSpace, _Constraints, _GradientCheck):
         heights = []
         for j, leg in enumerate(scene.legs):
             foot = xl.get(s.x0, "foot", j)
-            d, _, _ = closest_obstacle(scene.obstacles, ca.DM(foot))
+            d, _, _ = closest_obstacle(scene.obstacles, ca.DM(foot), leg.footpad)
             heights.append(float(d))
         g = float(np.linalg.norm(scene.gravity))
         v0 = float(np.dot(up, xl.get(s.x0, "velocity")))

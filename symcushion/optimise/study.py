@@ -244,7 +244,8 @@ def _place(scene: Scene, body, clearance: float) -> np.ndarray:
     for _ in range(_PLACEMENT_ITERS):
         best = None
         for leg in scene.legs:
-            d, n, _ = closest_obstacle(scene.obstacles, ca.DM(pos + R @ leg.rest_foot))
+            d, n, _ = closest_obstacle(scene.obstacles, ca.DM(pos + R @ leg.rest_foot),
+                                       leg.footpad)
             d, n = float(d), np.asarray(n, dtype=float).ravel()
             if best is None or d < best[0]:
                 best = (d, n)

@@ -169,6 +169,12 @@ def _settings(scene: Scene, timestep, solref, solimp, foot_mass, output_dt, rigi
         if isinstance(ob, Sphere) and ob.radius <= 2 * FOOT_RADIUS:
             raise ValueError(f"obstacle {i} is a sphere of radius {ob.radius:g} m, too small for "
                              f"the foot sphere ({FOOT_RADIUS:g} m) the MuJoCo peer shifts it by.")
+    padded = [j for j, leg in enumerate(scene.legs) if leg.footpad > 0]
+    if padded:
+        raise ValueError(f"legs {padded} of scene {scene.name!r} have footpads; the MuJoCo "
+                         "peer's feet are its own small spheres: compare a scene with "
+                         "`footpad` = 0, or use penalty_simulate, which offsets the obstacles "
+                         "as symcushion does.")
     springs = _leg_springs(scene, rigid_axial)
     m_f = positive("foot_mass", foot_mass, FOOT_MASS_RATIO * scene.body.mass)
     t = output_times(scene, output_dt)

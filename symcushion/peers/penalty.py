@@ -180,8 +180,9 @@ def build_penalty_ode(scene: Scene, *, stiffness: float, damping: float, slip_ve
         contact = ca.DM.zeros(3)
         deepest = -ca.inf
         for ob in scene.obstacles:
-            d = ob.distance(r_f)
-            n = ob.normal(r_f)
+            # a footpad's centre against the obstacle's offset surface (symcushion.obstacles)
+            d = ob.distance(r_f, leg.footpad)
+            n = ob.normal(r_f, leg.footpad)
             depth = ca.fmax(-d, 0.0)
             depth_rate = -ca.dot(n, u_f)
             F_n = ca.if_else(d < 0, ca.fmax(stiffness * depth + damping * depth_rate, 0.0), 0.0)
