@@ -302,7 +302,7 @@ class FeetStep:
         _, _, foot_proj = closest_obstacle(scene.obstacles, foot_w, leg.pad)
         foot_w = ca.if_else(stays, foot_proj, foot_w)
         if self.curved:
-            _, normal_end, _ = closest_obstacle(scene.obstacles, foot_proj)
+            _, normal_end, _ = closest_obstacle(scene.obstacles, foot_proj, leg.pad)
         else:                       # on planes the predicted normal is the final one
             normal_end = normal_w
         rho1 = ca.if_else(stays, P.R1.T @ (foot_w - P.pos1), rho1)
