@@ -94,7 +94,8 @@ def test_the_apollo_example_reads_and_steps():
 
 
 def test_tripods_refuse_the_event_rules():
-    scene = load_scene(STUDIES / "apollo_lander.toml")
+    scene, _ = _lander(dict(primary=Linear(2e5), secondary2=Linear(7e5),
+                            secondary3=Linear(7e5)))
     with pytest.raises(ValueError, match="inverted tripods.*events = 'none'"):
         scene.with_(hysteresis="sign", events="branch")
 
