@@ -354,7 +354,10 @@ def _with_clones(text: str) -> str:
     if first is None:
         raise RuntimeError("no function definition found in CasADi's generated C: has "
                            "its format changed? Generate without clones.")
-    text = text[:first.start()] + TARGET_CLONES + "\n" + text[first.start():]
+    # before the comment CasADi writes on the line above (the Function's signature)
+    start = text.rfind("\n", 0, first.start() - 1) + 1
+    start = start if text.startswith("/*", start) else first.start()
+    text = text[:start] + TARGET_CLONES + "\n" + text[start:]
     return _DEFINITION.sub(r"SYMCUSHION_CLONES static int \1(\2) {", text)
 
 
