@@ -74,8 +74,8 @@ CODEGEN_OPTIONS = {
 CFLAGS = ("-O3", "-std=c99", "-fPIC", "-fno-semantic-interposition", "-fno-math-errno",
           "-ffp-contract=off")
 
-#: Function multiversioning of the touchdown source (docs/codegen.md, "Build"): gcc
-#: compiles each of its functions twice, for x86-64-v3 (AVX2) and for the baseline,
+#: Function multiversioning of the touchdown source (docs/codegen.md, "Generate and
+#: build"): gcc compiles each of its functions twice, for x86-64-v3 (AVX2) and for the baseline,
 #: and the loader picks the clone the CPU runs (an ifunc). Measured on the Fig. 3 and
 #: Fig. 4 steps: 7-9 % and 5 % faster, the same bits (-ffp-contract=off keeps the
 #: v3 clone from fusing a*b + c; the guard below drops the clones where that is not
