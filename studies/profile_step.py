@@ -58,7 +58,9 @@ LIBM = "libm"
 def c_names(source: Path) -> dict:
     """The generated C's static functions ``casadi_fN`` by the Function each implements."""
     text = source.read_text()
-    found = re.findall(r"/\* ([A-Za-z0-9_]+):\([^\n]*\*/\nstatic int casadi_(f\d+)\(", text)
+    # a definition may carry the clones macro (symcushion.cbuild.TARGET_CLONES)
+    found = re.findall(r"/\* ([A-Za-z0-9_]+):\([^\n]*\*/\n(?:SYMCUSHION_CLONES )?"
+                       r"static int casadi_(f\d+)\(", text)
     return {f"{TOUCHDOWN}_{fn}": name for name, fn in found}
 
 

@@ -24,7 +24,7 @@ from pathlib import Path
 import casadi as ca
 
 __all__ = ["CFLAGS", "CODEGEN_OPTIONS", "WARNINGS", "LIBRARY", "MAIN", "MANIFEST", "PROGRAM",
-           "CachedBuild", "compile_cached", "find_compiler"]
+           "TARGET_CLONES", "CachedBuild", "compile_cached", "find_compiler"]
 
 MAIN = "main.c"
 LIBRARY = "libsymcushion.so"
@@ -73,6 +73,25 @@ CODEGEN_OPTIONS = {
 #: semantics that the guarded divisions and if_else of the contact steps need).
 CFLAGS = ("-O3", "-std=c99", "-fPIC", "-fno-semantic-interposition", "-fno-math-errno",
           "-ffp-contract=off")
+
+#: Function multiversioning of the touchdown source (docs/codegen.md, "Generate and
+#: build"): gcc compiles each of its functions twice, for x86-64-v3 (AVX2) and for the baseline,
+#: and the loader picks the clone the CPU runs (an ifunc). Measured on the Fig. 3 and
+#: Fig. 4 steps: 7-9 % and 5 % faster, the same bits (-ffp-contract=off keeps the
+#: v3 clone from fusing a*b + c; the guard below drops the clones where that is not
+#: the default, outside ISO C mode), the same speed as -march=x86-64-v3 while still
+#: running on any x86-64; the price is about twice gcc's time on that source. Only
+#: gcc >= 11 (the name x86-64-v3) on x86-64 glibc (ifuncs) clones; elsewhere
+#: SYMCUSHION_CLONES is empty and the code is the plain one.
+TARGET_CLONES = """\
+/* symcushion: each function also compiled for x86-64-v3, picked at load time */
+#if defined(__GNUC__) && !defined(__clang__) && __GNUC__ >= 11 && defined(__x86_64__) \\
+    && defined(__GLIBC__) && defined(__STRICT_ANSI__) && !defined(SYMCUSHION_NO_CLONES)
+#define SYMCUSHION_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
+#else
+#define SYMCUSHION_CLONES
+#endif
+"""
 
 #: Warnings requested on every compile; the build fails on none, the tests
 #: check that gcc prints nothing.

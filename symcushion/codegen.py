@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import subprocess
 import sys
 import time
@@ -40,7 +41,7 @@ import casadi as ca
 import numpy as np
 
 from .cbuild import (CFLAGS, CODEGEN_OPTIONS, LIBRARY, MAIN, MANIFEST, PROGRAM,  # noqa: F401
-                     WARNINGS, CachedBuild, _build, _fingerprint, compile_cached,
+                     TARGET_CLONES, WARNINGS, CachedBuild, _build, _fingerprint, compile_cached,
                      find_compiler)
 from .contact import METHODS, contact_step
 from .layout import default_p, param_layout, state_columns
@@ -289,16 +290,21 @@ def _functions(scene: Scene | None, steps: int | None):
 
 
 def _generate_source(name: str, functions, out_dir: Path, tail: str = "",
-                     declarations: str = "") -> tuple[Path, str]:
+                     declarations: str = "", clones: bool = False) -> tuple[Path, str]:
     """Write ``name.c``, with ``tail`` appended to CasADi's code; return it and the text
-    of the header CasADi wrote (deleted), with ``declarations`` appended."""
+    of the header CasADi wrote (deleted), with ``declarations`` appended. ``clones``:
+    every function CasADi wrote is compiled in the clones of ``cbuild.TARGET_CLONES``."""
     cg = ca.CodeGenerator(name + ".c", CODEGEN_OPTIONS)
     for f in functions:
         cg.add(f)
     cg.generate(str(out_dir) + os.sep)
     source = out_dir / (name + ".c")
+    text = source.read_text()
+    if clones:
+        text = _with_clones(text)
     if tail:
-        source.write_text(_before_closing(source.read_text(), tail))
+        text = _before_closing(text, tail)
+    source.write_text(text)
     header = out_dir / (name + ".h")
     text = header.read_text()
     header.unlink()
@@ -335,6 +341,24 @@ def _rollout_source(model: StepModel, steps: int) -> tuple[str, str]:
 
 _OPEN_C = '#ifdef __cplusplus\nextern "C" {\n#endif\n'
 _CLOSE_C = '#ifdef __cplusplus\n} /* extern "C" */\n#endif\n'
+
+
+#: The definitions of CasADi's functions in its generated C (one per Function).
+_DEFINITION = re.compile(r"^static int (casadi_f\d+)\((.*)\) \{$", re.M)
+
+
+def _with_clones(text: str) -> str:
+    """CasADi's C with ``SYMCUSHION_CLONES`` on each of its function definitions, and
+    the macro (``cbuild.TARGET_CLONES``) defined before the first."""
+    first = _DEFINITION.search(text)
+    if first is None:
+        raise RuntimeError("no function definition found in CasADi's generated C: has "
+                           "its format changed? Generate without clones.")
+    # before the comment CasADi writes on the line above (the Function's signature)
+    start = text.rfind("\n", 0, first.start() - 1) + 1
+    start = start if text.startswith("/*", start) else first.start()
+    text = text[:start] + TARGET_CLONES + "\n" + text[start:]
+    return _DEFINITION.sub(r"SYMCUSHION_CLONES static int \1(\2) {", text)
 
 
 def _before_closing(text: str, insert: str) -> str:
@@ -484,7 +508,8 @@ def generate(out_dir, scene=None, build: bool = False, steps: int | None = None,
         groups[TOUCHDOWN] = (touchdown, *_rollout_source(model, steps))
     sources, header_parts = {}, []
     for name, (fns, tail, declarations) in groups.items():
-        src, text = _generate_source(name, fns, out, tail, declarations)
+        src, text = _generate_source(name, fns, out, tail, declarations,
+                                     clones=name == TOUCHDOWN)
         sources[name] = src
         header_parts.append(text)
     signatures = [_Signature.of(f) for f in kernels + touchdown] + ([rollout] if rollout else [])
