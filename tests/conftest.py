@@ -7,11 +7,22 @@ returns a new scene and leaves the shared one unchanged. A separately started Da
 processes (``dask_scheduler``) serves the tests of the cluster paths. The contact-case
 generator is :func:`oracle_contact.random_cases` (pytest puts this folder on
 ``sys.path``, so the oracle module imports without path manipulation).
+
+The research studies (``research/``, e.g. ``from research import event_order``)
+are not part of the installed package; this file puts the repository root on
+``sys.path`` so that the tests import them from the checkout, the one place
+that path is set.
 """
 import subprocess
 import sys
 import time
 from pathlib import Path
+
+# research/ lives beside the package, not in it, and is never installed: the
+# tests import it from this checkout (before any test module is collected).
+ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
 
 import numpy as np
 import pytest
@@ -21,7 +32,6 @@ from symcushion.characteristics import Linear
 from symcushion.obstacles import Plane
 from symcushion.scene import Body, Scene, load_scene, symmetric_legs
 
-ROOT = Path(__file__).resolve().parents[1]
 STUDIES = ROOT / "studies"
 
 

@@ -22,7 +22,8 @@ from symcushion.optimise import study_from_dict
 from symcushion.layout import state_layout
 from symcushion.scene import SceneError, load_scene, read_toml, scene_from_dict
 from symcushion.simulate import build_model, initial_state, simulate
-from symcushion.studies import event_order
+
+from research import event_order   # not installed: tests/conftest.py puts it on sys.path
 
 ROOT = Path(__file__).resolve().parent.parent
 

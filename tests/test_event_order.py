@@ -29,7 +29,8 @@ import pytest
 from symcushion.layout import state_layout
 from symcushion.scene import read_toml, scene_from_dict
 from symcushion.simulate import build_model, simulate
-from symcushion.studies import event_order
+
+from research import event_order   # not installed: tests/conftest.py puts it on sys.path
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -565,7 +566,7 @@ def test_smooth_until_ends_where_the_gains_of_the_nudges_part():
 def test_smoothness_runs_measure_each_nudged_run_from_the_unmoved_one(monkeypatch):
     from types import SimpleNamespace
 
-    from symcushion.studies.event_order import smoothness
+    from research.event_order import smoothness
 
     def fake(scene, dt, keep_rows=None):
         # a run linear in the nudge of v_y, with a jump of 1 mm after 0.25 s for nudges
@@ -598,7 +599,7 @@ def test_smoothness_runs_reject_bad_input_before_running():
 
 
 def test_time_table_head_gives_one_column_per_time_after_the_leading_cells():
-    from symcushion.studies.event_order.text import time_table_head
+    from research.event_order.text import time_table_head
     head, rule = time_table_head(("scheme", "Δt (s)"), ("---", "---:"), (0.1, 0.25))
     assert head == "| scheme | Δt (s) | t = 0.1 s | t = 0.25 s |"
     assert rule == "|---|---:|---:|---:|"
@@ -627,7 +628,7 @@ def _fake_pair(scene, dt, keep_rows=None):
 
 
 def test_roundoff_runs_measure_each_run_against_its_one_ulp_twin(monkeypatch):
-    from symcushion.studies.event_order import roundoff
+    from research.event_order import roundoff
 
     monkeypatch.setattr(roundoff, "_trajectory", _fake_pair)
     rows = event_order.roundoff_runs(schemes=("all events",), dts=(1e-4,),
@@ -648,7 +649,7 @@ def test_roundoff_runs_measure_each_run_against_its_one_ulp_twin(monkeypatch):
 
 
 def test_roundoff_runs_reject_bad_input_before_running(monkeypatch):
-    from symcushion.studies.event_order import roundoff
+    from research.event_order import roundoff
 
     def never(*args, **kwargs):
         raise AssertionError("ran before checking its input")
@@ -715,7 +716,7 @@ def test_needed_references_take_the_travel_of_each_schemes_finest_run():
 
 
 def test_roundoff_text_and_figure_give_what_a_whole_run_fit_needs(tmp_path, monkeypatch):
-    from symcushion.studies.event_order import roundoff
+    from research.event_order import roundoff
 
     monkeypatch.setattr(roundoff, "_trajectory", _fake_pair)
     rows = event_order.roundoff_runs(schemes=("all events", "all events (midpoint, lock)"),

@@ -26,7 +26,8 @@ from symcushion.simulate import build_model, initial_state, simulate
 from symcushion import touchdown
 from symcushion.stroke_lock import (LOCKED, UNLOADING, axial_branches, newton_masked, skip_unless,
                                      solve_masked)
-from symcushion.studies import event_order
+
+from research import event_order   # not installed: tests/conftest.py puts it on sys.path
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -1,4 +1,4 @@
-"""Command line of the event-order study: run the cases, write CSV, figure and docs.
+"""Command line of the event-order study: run the cases, write CSV, figures and the results page.
 
 Owns the argument parsing and the order of the work; it must not measure
 anything itself.
@@ -6,11 +6,12 @@ anything itself.
 from __future__ import annotations
 
 import argparse
+import importlib
 import time
 
 from symcushion import report
 
-from .cases import DOC, FIGURES, scenes
+from .cases import FIGURES, RESULTS, scenes
 from .controls import controls, controls_text, cost_check, cost_text, switch_case
 from .figure import plot, plot_roundoff, plot_window
 from .held import held_runs, held_text
@@ -23,10 +24,19 @@ from .text import _fmt_order, report_text
 from .window import WINDOW_TIMES, window_orders, window_runs, window_text
 
 
-def main(argv=None):
-    from symcushion.studies import event_order  # the package: its docstring is the study's
+#: First line of a new results page.
+TITLE = "# Event order: results"
 
-    parser = argparse.ArgumentParser(description=event_order.__doc__.split("\n")[0])
+
+def _write(heading: str, body: str) -> None:
+    """Replace (or append) the section ``heading`` of the results page."""
+    report.write_section(RESULTS, heading, body, title=TITLE)
+
+
+def main(argv=None):
+    study = importlib.import_module(__package__)    # its docstring is the study's
+
+    parser = argparse.ArgumentParser(description=study.__doc__.split("\n")[0])
     parser.add_argument("--only", default=None, help="run only the cases whose scene name or "
                         "variant contains this text (no output is written)")
     parser.add_argument("--controls", action="store_true",
@@ -61,37 +71,33 @@ def main(argv=None):
         rows = roundoff_runs()
         need = needed_references(rows, coarse)
         plot_roundoff(rows, need, FIGURES / "event_order_roundoff.png")
-        report.write_section(DOC, "Events: what double precision resolves",
-                             roundoff_text(rows, need, coarse))
+        _write("Events: what double precision resolves", roundoff_text(rows, need, coarse))
         return
     if args.smoothness:
-        report.write_section(DOC, "Events: where each run stops being smooth",
-                             smoothness_text(smoothness_runs()))
+        _write("Events: where each run stops being smooth", smoothness_text(smoothness_runs()))
         return
     if args.window:
         result = window_runs()
         plot_window(result, window_orders(result), WINDOW_TIMES,
                     FIGURES / "event_order_window.png")
-        report.write_section(DOC, "Events: orders where the reference is known",
-                             window_text(result))
+        _write("Events: orders where the reference is known", window_text(result))
         return
     if args.reference:
-        report.write_section(DOC, "Events: how well the reference is known",
-                             reference_text(ladder_runs(), sensitivity_runs()))
+        _write("Events: how well the reference is known",
+               reference_text(ladder_runs(), sensitivity_runs()))
         return
     if args.held:
-        report.write_section(DOC, "Events: what the regularised switch holds",
-                             held_text(held_runs()))
+        _write("Events: what the regularised switch holds", held_text(held_runs()))
         return
     if args.limits:
         text = limits_text(limit_runs()) + "\n\n" + oracle_text(oracle())
-        report.write_section(DOC, "Events: two limits on the slope", text)
+        _write("Events: two limits on the slope", text)
         return
     if args.cost:
-        report.write_section(DOC, "Events: cost", cost_text(cost_check()))
+        _write("Events: cost", cost_text(cost_check()))
         return
     if args.controls:
-        report.write_section(DOC, "Events: controls", controls_text(controls()))
+        _write("Events: controls", controls_text(controls()))
         return
     started = time.perf_counter()
     rows = []
@@ -110,5 +116,4 @@ def main(argv=None):
         return
     write_csv(rows, FIGURES / "event_order.csv")
     plot(rows, fits, FIGURES / "event_order.png")
-    report.write_section(DOC, "Events: measured",
-                         report_text(rows, fits, time.perf_counter() - started))
+    _write("Events: measured", report_text(rows, fits, time.perf_counter() - started))

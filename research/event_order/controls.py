@@ -170,7 +170,7 @@ def controls(progress=print):
 
 
 def controls_text(rows):
-    """The section "Events: controls" of the docs."""
+    """The section "Events: controls" of the results page."""
     lines = ["Control runs (`python studies/event_order.py --controls`): the lander with a "
              f"linear absorber ({CONTROL_STIFFNESS:g} N/m) on a level plane, started at rest on "
              f"its feet with a velocity kick, {CONTROL_DURATION:g} s on the VM; error of the "
@@ -217,7 +217,7 @@ def cost_check(progress=print):
 
 
 def cost_text(rows):
-    """The section "Events: cost" of the docs."""
+    """The section "Events: cost" of the results page."""
     lines = ["Interleaved timing (`python studies/event_order.py --cost`): compiled C, "
              f"Δt = {COST_DT:g} s, CPU s per simulated second, the fastest of {COST_ROUNDS} "
              "rounds, each round running the four cases of a variant one after the other. "

@@ -12,11 +12,13 @@ from pathlib import Path
 from symcushion.scene import read_toml, scene_from_dict
 
 
-#: The repository root: this file is symcushion/studies/event_order/cases.py.
-ROOT = Path(__file__).resolve().parents[3]
+#: The repository root: this file is research/event_order/cases.py.
+ROOT = Path(__file__).resolve().parents[2]
 STUDIES = ROOT / "studies"
 FIGURES = ROOT / "figures"
-DOC = ROOT / "docs" / "event-order.md"
+#: The study's generated tables, one section per option; docs/event-order.md
+#: states the findings and quotes these numbers.
+RESULTS = FIGURES / "event_order.md"
 BUILD = ROOT / "build" / "event_order"
 
 #: Δt of the fits (s): 1e-2 to 1e-4, about three per decade; each divides the

@@ -1,4 +1,4 @@
-"""The event-order study's docs text: the measured tables and the cost ratios.
+"""The event-order study's results text: the measured tables and the cost ratios.
 
 Owns the Markdown of the section "Events: measured" and the head of the
 tables that give a value per time; it must not run anything.
@@ -54,7 +54,7 @@ def cost_ratios(rows):
 
 
 def report_text(rows, fits, seconds):
-    """The section "Events: measured" of the docs."""
+    """The section "Events: measured" of the results page."""
     lines = [f"Produced by `python studies/event_order.py` in {seconds / 60:.1f} min; data in "
              "`figures/event_order.csv`, plot `figures/event_order.png`. Implicit contact step, "
              f"compiled C; Δt grid {', '.join(f'{d:g}' for d in DT_GRID)} s; reference at "
@@ -62,7 +62,7 @@ def report_text(rows, fits, seconds):
              "(`switch_control()`: every leg turns once onto its unloading branch, no chatter) "
              f"runs on the VM at Δt {', '.join(f'{d:g}' for d in SWITCH_DTS)} s against "
              f"{SWITCH_REF[0]:g} s checked against {SWITCH_REF[1]:g} s.", "",
-             "![event order](../figures/event_order.png)", "",
+             "![event order](event_order.png)", "",
              "Fitted orders (least squares over the grid, errors above 10× the reference's "
              "own); slip: share of the contact samples in slip at "
              f"Δt = {SLIP_DT:g} s; reversals: each leg's stroke reversals in contact at "

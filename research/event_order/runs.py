@@ -2,7 +2,7 @@
 
 Owns running one case (compiled C, the reference and its check), reading a
 run's positions at given times, the errors of a run against the reference,
-the stroke reversals of a leg, the fitted orders and the CSV. It must not plot or write the docs.
+the stroke reversals of a leg, the fitted orders and the CSV. It must not plot or write the results page.
 """
 from __future__ import annotations
 

@@ -187,7 +187,7 @@ def window_text(result) -> str:
         f"own steps). Reference: the regularised switch at w = {w:g} m²/s, Δt = {dt:g} s; its "
         f"check: w = {w_check:g} m²/s, Δt = {dt_check:g} s. Plot: "
         "`figures/event_order_window.png`.", "",
-        "![event order by window](../figures/event_order_window.png)", "",
+        "![event order by window](event_order_window.png)", "",
         "The reference's spread (the check's distance from it over the window) and its "
         "events inside the window (stick and slip count each switch of a foot; a stroke turn "
         "is a reversal of a leg's stroke in contact, a branch switch or a hold):", "",

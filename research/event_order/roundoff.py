@@ -214,5 +214,5 @@ def roundoff_text(rows, need=None, coarse=None, times=SMOOTH_TIMES) -> str:
         for s in need:
             travel = min((r for r in rows if r["scheme"] == s), key=lambda r: r["dt"])["travel"]
             lines.append(f"| {s} | {coarse[s]:.2e} | {travel:.3f} | {_um(need[s])} |")
-        lines += ["", "![round-off floor](../figures/event_order_roundoff.png)"]
+        lines += ["", "![round-off floor](event_order_roundoff.png)"]
     return "\n".join(lines)

@@ -45,8 +45,11 @@ start as built and from a settled start (:func:`settled`).
 
 Output: ``figures/event_order.csv`` (one row per scene, variant and Δt),
 ``figures/event_order.png``, and the sections "Events: measured" and
-"Events: controls" of ``docs/event-order.md``. Run from the repository
-root: ``python studies/event_order.py`` (seventeen cases, 7 min on the
+"Events: controls" of the results page ``figures/event_order.md`` (each
+option below rewrites its own section there; ``docs/event-order.md`` states
+the findings). The study is research, not part of the installed package;
+run it from the repository root: ``python studies/event_order.py``
+(seventeen cases, 7 min on the
 shared 2-core machine with other jobs running, plus gcc the first time;
 builds are cached in ``build/event_order/``); ``--controls`` runs only the
 control runs (about 4 min), ``--cost`` only the interleaved timing of the
@@ -76,9 +79,9 @@ output written).
 """
 from __future__ import annotations
 
-from .cases import (BRANCH_VARIANTS, BUILD, CHUNK, COLUMNS, DOC, DT_CHECK, DT_GRID, DT_REF,
-                    ERROR_KEYS, EVENT_OPTIONS, FIGURES, FLAT_GAP, REVERSAL_DTS, ROOT, SLIP_DT,
-                    SLIP_RULES, STICK_MU, STUDIES, VARIANTS, case_label, scenes, slope_cases)
+from .cases import (BRANCH_VARIANTS, BUILD, CHUNK, COLUMNS, DT_CHECK, DT_GRID, DT_REF,
+                    ERROR_KEYS, EVENT_OPTIONS, FIGURES, FLAT_GAP, RESULTS, REVERSAL_DTS, ROOT,
+                    SLIP_DT, SLIP_RULES, STICK_MU, STUDIES, VARIANTS, case_label, scenes, slope_cases)
 from .cases import _variant_data  # noqa: F401 - the tests build a variant's scene data with it
 from .controls import (CONTROLS, CONTROL_DTS, CONTROL_DT_REF, CONTROL_DURATION, CONTROL_STIFFNESS,
                        COST_DT, COST_ROUNDS, SETTLE_DT, STARTS, SWITCH_DTS,
@@ -108,7 +111,7 @@ from .window import (WINDOW_REFERENCE, WINDOW_SCHEMES, WINDOW_TIMES, window_erro
 
 __all__ = [
     "BRANCH_VARIANTS", "BUILD", "CHUNK", "COLUMNS", "CONTROLS", "CONTROL_DTS", "CONTROL_DT_REF",
-    "CONTROL_DURATION", "CONTROL_STIFFNESS", "COST_DT", "COST_ROUNDS", "DOC", "DT_CHECK",
+    "CONTROL_DURATION", "CONTROL_STIFFNESS", "COST_DT", "COST_ROUNDS", "DT_CHECK",
     "DT_GRID", "DT_REF", "ERROR_KEYS", "EVENT_OPTIONS", "FIGURES", "FLAT_GAP", "HELD_RUNS",
     "LIMIT_DTS",
     "LIMIT_SCHEMES", "LINES", "ORACLE_DT", "PERTURBATION_SIZES", "PERTURBED", "REFERENCE_LADDER",
@@ -126,7 +129,7 @@ __all__ = [
     "window_events", "window_orders", "window_runs", "window_text", "WINDOW_STYLE",
     "plot_window", "write_csv", "LINEAR_SPREAD", "NUDGES", "SMOOTH_DTS", "SMOOTH_SCHEMES",
     "SMOOTH_TIMES", "nudged", "smooth_until", "smoothness_runs", "smoothness_text", "slope_cases", "positions_at",
-    "REGULARISED_RUNS", "ROUNDOFF_DTS", "ROUNDOFF_SCHEMES", "roundoff_runs",
+    "REGULARISED_RUNS", "RESULTS", "ROUNDOFF_DTS", "ROUNDOFF_SCHEMES", "roundoff_runs",
     "roundoff_text", "ulp_nudge", "FIT_RANGE", "ORDER_AIM", "coarse_errors",
     "needed_reference", "needed_references", "plot_roundoff",
 ]
