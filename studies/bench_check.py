@@ -174,3 +174,20 @@ def check_rollout(bench: str, what: str, rollout, scene, x0, p, dt: float, steps
     check_equal(bench, f"{what}: states X", X, X_ref, rtol=rtol, reference_name=name)
     check_equal(bench, f"{what}: outputs Y", Y, Y_ref, rtol=rtol, reference_name=name)
     return X, Y
+
+
+def buffered(rollout, x0, p, dt: float):
+    """``rollout`` bound to preallocated NumPy arrays (``casadi.Function.buffer``): returns
+    (evaluate, outputs); each ``evaluate()`` writes the rollout of (x0, p, dt) into
+    ``outputs`` without allocating, as a timing loop needs."""
+    buffer, evaluate = rollout.buffer()
+    inputs = [np.array(x0, dtype=float), np.array(p, dtype=float), np.array([dt])]
+    outputs = [np.zeros(rollout.nnz_out(i)) for i in range(rollout.n_out())]
+    for i, a in enumerate(inputs):
+        buffer.set_arg(i, memoryview(a))
+    for i, a in enumerate(outputs):
+        buffer.set_res(i, memoryview(a))
+    def run(_keep=(buffer, inputs)):          # the buffers outlive the closure
+        evaluate()
+
+    return run, outputs

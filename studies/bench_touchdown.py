@@ -48,7 +48,8 @@ from pathlib import Path
 
 import numpy as np
 
-from bench_check import BITWISE, check_equal, check_finite, check_rollout  # studies/
+from bench_check import (BITWISE, buffered, check_equal, check_finite,  # studies/
+                         check_rollout)
 from bench_contact import NATIVE_CASES, native_ratio, spatial_cases  # studies/bench_contact.py
 from symcushion import codegen
 from symcushion.codegen import CFLAGS, compiled_model
@@ -103,20 +104,14 @@ def symcushion_timer(scene, folder: Path):
     x0 = initial_state(scene)
     rollout = model.rollout(steps)
     p = check_symcushion(scene, rollout, steps)
-    buffer, evaluate = rollout.buffer()
-    inputs = [np.array(x0, dtype=float), np.array(p, dtype=float), np.array([scene.dt])]
-    outputs = [np.zeros(rollout.nnz_out(i)) for i in range(rollout.n_out())]
-    for i, a in enumerate(inputs):
-        buffer.set_arg(i, memoryview(a))
-    for i, a in enumerate(outputs):
-        buffer.set_res(i, memoryview(a))
+    evaluate, outputs = buffered(rollout, x0, p, scene.dt)
     evaluate()
     X_ref = np.asarray(rollout(x0, p, scene.dt)[0], dtype=float).ravel(order="F")
     check_equal(BENCH, f"{scene.name} rollout evaluated into buffers: X", outputs[0], X_ref,
                 rtol=BITWISE, reference_name="the checked rollout")
 
-    def timer(call: bool = False, _keep=(buffer, inputs, outputs)) -> float:
-        # the buffer holds raw pointers: its arrays must live as long as the timer
+    def timer(call: bool = False, _keep=outputs) -> float:
+        # the buffers hold raw pointers: their arrays must live as long as the timer
         start = time.perf_counter()
         if call:
             rollout(x0, p, scene.dt)

@@ -36,7 +36,8 @@ from pathlib import Path
 
 import numpy as np
 
-from bench_check import BITWISE, ROUNDOFF_RTOL, check_equal, check_rollout  # studies/
+from bench_check import (BITWISE, ROUNDOFF_RTOL, buffered, check_equal,  # studies/
+                         check_rollout)
 from symcushion import simulate
 from symcushion.characteristics import Linear
 from symcushion.codegen import compiled_model
@@ -88,19 +89,13 @@ def timer_of(scene, folder: Path):
     traj = simulate(scene.with_(duration=steps * scene.dt), estimate=False)
     check_equal(BENCH, f"{scene.name} last state", X[:, -1], traj.info["final_state"],
                 rtol=ROUNDOFF_RTOL, reference_name="symcushion.simulate of the same scene")
-    buffer, evaluate = rollout.buffer()
-    inputs = [np.array(x0, dtype=float), np.array(p, dtype=float), np.array([scene.dt])]
-    outputs = [np.zeros(rollout.nnz_out(i)) for i in range(rollout.n_out())]
-    for i, a in enumerate(inputs):
-        buffer.set_arg(i, memoryview(a))
-    for i, a in enumerate(outputs):
-        buffer.set_res(i, memoryview(a))
+    evaluate, outputs = buffered(rollout, x0, p, scene.dt)
     evaluate()
     check_equal(BENCH, f"{scene.name} rollout evaluated into buffers: X", outputs[0],
                 X.ravel(order="F"), rtol=BITWISE, reference_name="the checked rollout")
 
-    def timer(_keep=(buffer, inputs, outputs)) -> float:
-        # the buffer holds raw pointers: its arrays must live as long as the timer
+    def timer(_keep=outputs) -> float:
+        # the buffers hold raw pointers: their arrays must live as long as the timer
         start = time.perf_counter()
         evaluate()
         return time.perf_counter() - start

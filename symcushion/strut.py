@@ -139,6 +139,18 @@ def leg_geometry_expr(r, r_h, e0, en):
 _ELEMENT_ORDER = ("S", "M_beta", "M_gamma")
 
 
+def curve_param_names(elements) -> tuple[str, ...]:
+    """``element.parameter`` names of a leg's tunable curves, in the order of ``p``."""
+    return tuple(f"{el.name}.{n}" for el in elements if el.curve.tunable
+                 for n in el.curve.param_names)
+
+
+def curve_param_values(elements) -> np.ndarray:
+    """The default values of a leg's tunable curve parameters (``curve_param_names``)."""
+    vals = [el.curve.param_values for el in elements if el.curve.tunable]
+    return np.concatenate(vals) if vals else np.zeros(0)
+
+
 def memory_functions_of(leg, geometry: str = "constant") -> dict[str, ca.Function]:
     """The memory law's named Functions of any leg scheme with ``memory_force_expr``,
     ``next_sets_expr``, ``free_foot_expr``, ``deflections_expr`` and ``_p_size``;
@@ -278,14 +290,12 @@ class HingedStrut:
     @property
     def param_names(self) -> tuple[str, ...]:
         """Names of the entries of ``p`` (tunable curves only), e.g. ``S.k``."""
-        return tuple(f"{el.name}.{n}" for el in self.elements if el.curve.tunable
-                     for n in el.curve.param_names)
+        return curve_param_names(self.elements)
 
     @property
     def param_values(self) -> np.ndarray:
         """Default values of ``p``."""
-        vals = [el.curve.param_values for el in self.elements if el.curve.tunable]
-        return np.concatenate(vals) if vals else np.zeros(0)
+        return curve_param_values(self.elements)
 
     @property
     def geometry_values(self) -> np.ndarray:

@@ -45,7 +45,7 @@ import numpy as np
 from . import absorber
 from .characteristics import Curve
 from .layout import TRIPOD_GEOMETRY_FIELDS
-from .strut import memory_functions_of
+from .strut import curve_param_names, curve_param_values, memory_functions_of
 from .validation import real, vector
 
 __all__ = ["InvertedTripod", "SINGULAR_ANGLE", "ELEMENTS", "tripod_geometry_expr",
@@ -236,14 +236,12 @@ class InvertedTripod:
     @property
     def param_names(self) -> tuple[str, ...]:
         """Names of the entries of ``p`` (tunable curves only), e.g. ``primary.k``."""
-        return tuple(f"{el.name}.{n}" for el in self.elements if el.curve.tunable
-                     for n in el.curve.param_names)
+        return curve_param_names(self.elements)
 
     @property
     def param_values(self) -> np.ndarray:
         """Default values of ``p``."""
-        vals = [el.curve.param_values for el in self.elements if el.curve.tunable]
-        return np.concatenate(vals) if vals else np.zeros(0)
+        return curve_param_values(self.elements)
 
     @property
     def rest_foot(self) -> np.ndarray:
