@@ -21,7 +21,7 @@ from .characteristics import (KINK_WIDTH, RATE_WIDTH, Crushable, Curve, GasSprin
                               PiecewiseLinear, TwoSided)
 from .contact import METHODS  # re-exported: scenes name their contact step
 from .obstacles import ImplicitSurface, Obstacle, Plane, Sphere, Terrain
-from .strut import LAWS, HingedStrut
+from .strut import DEFAULT_LAW, LAWS, HingedStrut
 from .tripod import ELEMENTS as TRIPOD_ELEMENTS
 from .tripod import InvertedTripod
 from .formula import Formula, FormulaError
@@ -422,7 +422,7 @@ def _legs(top: Table) -> list:
                     t.get("length", positive=True), t.get("e0", kind="vector", size=3),
                     t.get("en", kind="vector", size=3))
             els["azimuth0"] = t.get("azimuth0", 0.0)
-            els["law"] = t.get("law", "paper", kind="string", choices=LAWS)
+            els["law"] = t.get("law", DEFAULT_LAW, kind="string", choices=LAWS)
             els["footpad"] = t.get("footpad", 0.0, nonnegative=True)
             t.finish(known=_LEGS_KEYS)
             legs.append(_build(t, symmetric_legs, *args, **els))
@@ -436,7 +436,7 @@ def _legs(top: Table) -> list:
             els = _elements(t)
             if t.has("axial_ratio"):
                 els["axial_ratio"] = t.get("axial_ratio", positive=True)
-            els["law"] = t.get("law", "paper", kind="string", choices=LAWS)
+            els["law"] = t.get("law", DEFAULT_LAW, kind="string", choices=LAWS)
             els["footpad"] = t.get("footpad", 0.0, nonnegative=True)
             args = (t.get("hinge", kind="vector", size=3), t.get("e0", kind="vector", size=3),
                     t.get("en", kind="vector", size=3), t.get("length", positive=True))

@@ -61,12 +61,18 @@ from .characteristics import Curve, Linear
 from .layout import LEG_GEOMETRY_FIELDS
 from .validation import direction, real, vector
 
-__all__ = ["HingedStrut", "RIGID_AXIAL_RATIO", "SINGULAR_ANGLE", "LAWS", "GEOMETRY_MODES",
+__all__ = ["HingedStrut", "RIGID_AXIAL_RATIO", "SINGULAR_ANGLE", "LAWS", "DEFAULT_LAW", "GEOMETRY_MODES",
            "GEOMETRY_SIZE", "leg_geometry_expr", "bound_geometry"]
 
 #: The force laws of a strut: ``"paper"``, (2.1) as printed; ``"potential"``,
 #: the gradient of the elements' deflections weighted by their forces.
 LAWS = ("paper", "potential")
+#: The force law of a strut in a scene file that names none: the energy-consistent
+#: ``"potential"`` law, which does no work around a closed path of the foot and
+#: agrees with (2.1) at rest (docs/strut.md, "Energy"); the paper's own scenes
+#: (Figs. 3–4) say ``law = "paper"``. A ``HingedStrut`` built in Python takes
+#: (2.1), the paper's object, unless told otherwise.
+DEFAULT_LAW = "potential"
 
 #: How the strut's Functions take its geometry: ``"constant"`` (baked in) or
 #: ``"input"`` (the last GEOMETRY_SIZE entries of ``p``).
