@@ -157,6 +157,18 @@ def curve_param_values(elements) -> np.ndarray:
     return np.concatenate(vals) if vals else np.zeros(0)
 
 
+def cached_memory_functions(leg, geometry: str) -> dict[str, ca.Function]:
+    """``leg``'s memory Functions for ``geometry``, built once into ``leg._memory_functions``;
+    a leg whose elements keep no state is refused."""
+    if not leg.axial_state:
+        raise ValueError("this leg's elements keep no state (a crushable element, "
+                         "one with an unloading curve, or a damped one does); use "
+                         "`functions()`.")
+    if geometry not in leg._memory_functions:
+        leg._memory_functions[geometry] = memory_functions_of(leg, geometry)
+    return leg._memory_functions[geometry]
+
+
 def memory_functions_of(leg, geometry: str = "constant") -> dict[str, ca.Function]:
     """The memory law's named Functions of any leg scheme with ``memory_force_expr``,
     ``next_sets_expr``, ``free_foot_expr``, ``deflections_expr`` and ``_p_size``;
@@ -562,13 +574,7 @@ class HingedStrut:
         ``geometry="input"``: ``p`` ends with the geometry block, as in
         :meth:`functions`.
         """
-        if not self.axial_state:
-            raise ValueError("this leg's elements keep no state (a crushable element, "
-                             "one with an unloading curve, or a damped one does); use "
-                             "`functions()`.")
-        if geometry not in self._memory_functions:
-            self._memory_functions[geometry] = memory_functions_of(self, geometry)
-        return self._memory_functions[geometry]
+        return cached_memory_functions(self, geometry)
 
     def loading_set(self, r, p=None) -> float:
         """The axial set of a foot at ``r`` reached along the loading curve (A2)."""

@@ -45,7 +45,7 @@ import numpy as np
 from . import absorber
 from .characteristics import Curve
 from .layout import TRIPOD_GEOMETRY_FIELDS
-from .strut import curve_param_names, curve_param_values, memory_functions_of
+from .strut import cached_memory_functions, curve_param_names, curve_param_values
 from .validation import real, vector
 
 __all__ = ["InvertedTripod", "SINGULAR_ANGLE", "ELEMENTS", "tripod_geometry_expr",
@@ -425,13 +425,7 @@ class InvertedTripod:
 
     def memory_functions(self, geometry: str = "constant") -> dict[str, ca.Function]:
         """The memory law's named Functions, as ``HingedStrut.memory_functions``."""
-        if not self.axial_state:
-            raise ValueError("this leg's elements keep no state (a crushable element, "
-                             "one with an unloading curve, or a damped one does); use "
-                             "`functions()`.")
-        if geometry not in self._memory_functions:
-            self._memory_functions[geometry] = memory_functions_of(self, geometry)
-        return self._memory_functions[geometry]
+        return cached_memory_functions(self, geometry)
 
     # -- Functions --------------------------------------------------------------
     def functions(self, geometry: str = "constant") -> dict[str, ca.Function]:
