@@ -20,6 +20,10 @@ import time
 __all__ = ["browser", "Chromium", "BROWSERS", "FLAGS"]
 
 #: Chromium executables looked up on the PATH, in order.
+#: Tries, and the pause between them (s), to remove the browser's profile folder while
+#: its helper processes finish writing into it.
+PROFILE_REMOVE_TRIES, PROFILE_REMOVE_PAUSE = 20, 0.1
+
 BROWSERS = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
 
 #: Command-line flags of the headless browser.
@@ -73,7 +77,8 @@ class Chromium:
         for fd in (to_browser[0], from_browser[1]):
             os.close(fd)
         self.write_fd, self.read_fd = to_browser[1], from_browser[0]
-        self.profile = tempfile.TemporaryDirectory(prefix="symcushion-chromium-")
+        self.profile = tempfile.TemporaryDirectory(prefix="symcushion-chromium-",
+                                                   ignore_cleanup_errors=True)
         reader, writer = self.child_ends
 
         def place_pipes():
@@ -163,4 +168,17 @@ class Chromium:
         except subprocess.TimeoutExpired:
             self.process.kill()
             self.process.wait()
-        self.profile.cleanup()
+        self._remove_profile()
+
+    def _remove_profile(self):
+        """Remove the profile folder; Chromium's helper processes may still write into it
+        for a moment after the browser ended, so try again briefly before giving up
+        quietly (a temporary folder left behind loses nothing)."""
+        for _ in range(PROFILE_REMOVE_TRIES):
+            if not os.path.exists(self.profile.name):
+                break
+            try:
+                shutil.rmtree(self.profile.name)
+            except OSError:
+                time.sleep(PROFILE_REMOVE_PAUSE)
+        self.profile.cleanup()              # ignores what is left (ignore_cleanup_errors)
