@@ -57,12 +57,13 @@ import casadi as ca
 import numpy as np
 
 from . import absorber
+from .leg_scheme import cached_memory_functions, curve_param_names, curve_param_values
 from .characteristics import Curve, Linear
 from .layout import LEG_GEOMETRY_FIELDS
 from .validation import direction, real, vector
 
 __all__ = ["HingedStrut", "RIGID_AXIAL_RATIO", "SINGULAR_ANGLE", "LAWS", "DEFAULT_LAW", "GEOMETRY_MODES",
-           "GEOMETRY_SIZE", "leg_geometry_expr", "bound_geometry"]
+           "GEOMETRY_SIZE", "leg_geometry_expr"]
 
 #: The force laws of a strut: ``"paper"``, (2.1) as printed; ``"potential"``,
 #: the gradient of the elements' deflections weighted by their forces.
@@ -143,75 +144,6 @@ def leg_geometry_expr(r, r_h, e0, en):
 
 #: The elements of a hinged strut, in the order of their sets and rates.
 _ELEMENT_ORDER = ("S", "M_beta", "M_gamma")
-
-
-def curve_param_names(elements) -> tuple[str, ...]:
-    """``element.parameter`` names of a leg's tunable curves, in the order of ``p``."""
-    return tuple(f"{el.name}.{n}" for el in elements if el.curve.tunable
-                 for n in el.curve.param_names)
-
-
-def curve_param_values(elements) -> np.ndarray:
-    """The default values of a leg's tunable curve parameters (``curve_param_names``)."""
-    vals = [el.curve.param_values for el in elements if el.curve.tunable]
-    return np.concatenate(vals) if vals else np.zeros(0)
-
-
-def cached_memory_functions(leg, geometry: str) -> dict[str, ca.Function]:
-    """``leg``'s memory Functions for ``geometry``, built once into ``leg._memory_functions``;
-    a leg whose elements keep no state is refused."""
-    if not leg.axial_state:
-        raise ValueError("this leg's elements keep no state (a crushable element, "
-                         "one with an unloading curve, or a damped one does); use "
-                         "`functions()`.")
-    if geometry not in leg._memory_functions:
-        leg._memory_functions[geometry] = memory_functions_of(leg, geometry)
-    return leg._memory_functions[geometry]
-
-
-def memory_functions_of(leg, geometry: str = "constant") -> dict[str, ca.Function]:
-    """The memory law's named Functions of any leg scheme with ``memory_force_expr``,
-    ``next_sets_expr``, ``free_foot_expr``, ``deflections_expr`` and ``_p_size``;
-    ``geometry="input"``: ``p`` ends with the leg's geometry block."""
-    r, r_regime = ca.SX.sym("r", 3), ca.SX.sym("r_regime", 3)
-    sets = ca.SX.sym("sets", 3)
-    p = ca.SX.sym("p", leg._p_size(geometry))
-    rate = ca.SX.sym("rate_gain"), ca.SX.sym("rate_offset", 3)
-    P = leg.memory_force_expr(r, sets, p, rate=rate)
-    Dp = ca.jacobian(leg.memory_force_expr(r, sets, p, r_regime, rate), r)
-    x0, rate0, dt = ca.SX.sym("deflection_start", 3), ca.SX.sym("mean_rate", 3), ca.SX.sym("dt")
-    names = ["r", "sets", "p", "rate_gain", "rate_offset"]
-    return {
-        "strut_force_memory": ca.Function("strut_force_memory", [r, sets, p, *rate], [P],
-                                          names, ["P"]),
-        "strut_stiffness_memory": ca.Function("strut_stiffness_memory",
-                                              [r, sets, p, *rate, r_regime], [Dp],
-                                              names + ["r_regime"], ["Dp"]),
-        "strut_next_set": ca.Function("strut_next_set", [r, sets, p, *rate],
-                                      [leg.next_sets_expr(r, sets, p, rate)],
-                                      names, ["next_set"]),
-        "strut_deflections": ca.Function("strut_deflections", [r, p],
-                                         [leg.deflections_expr(r, p)], ["r", "p"], ["x"]),
-        "strut_free_foot": ca.Function(
-            "strut_free_foot", [sets, p, x0, rate0, dt],
-            [leg.free_foot_expr(sets, p, x0, rate0, dt)],
-            ["sets", "p", "deflection_start", "mean_rate", "dt"], ["r"]),
-    }
-
-
-class bound_geometry:
-    """``strut_geometry(r, p)`` with its ``p`` bound: called, like the constant-geometry
-    Function, as ``f(r)`` or ``f.call(dict(r=...))``; the step binds each leg's slice
-    of its ``p`` (symcushion.touchdown)."""
-
-    def __init__(self, function: ca.Function, p):
-        self.function, self.p = function, p
-
-    def __call__(self, r):
-        return tuple(self.function(r, self.p))
-
-    def call(self, args: dict) -> dict:
-        return self.function.call(dict(args, p=self.p))
 
 
 @dataclass(frozen=True)

@@ -85,7 +85,8 @@ from .layout import (BODY_OUT, BODY_STATE, LEG_OUT, LEG_STATE, MODES, ParamLayou
 from .obstacles import closest_obstacle
 from .scene import Scene
 from .validation import real
-from .strut import GEOMETRY_MODES, bound_geometry
+from .leg_scheme import bound_geometry
+from .strut import GEOMETRY_MODES
 from .stroke_lock import (LOCKED, UNLOADING, any_of, axial_branches, bending_force, inside_cone,
                           newton_masked, skip_unless, solve_masked, stroke_acceleration,
                           stroke_rate)

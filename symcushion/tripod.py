@@ -45,7 +45,7 @@ import numpy as np
 from . import absorber
 from .characteristics import Curve
 from .layout import TRIPOD_GEOMETRY_FIELDS
-from .strut import cached_memory_functions, curve_param_names, curve_param_values
+from .leg_scheme import cached_memory_functions, curve_param_names, curve_param_values
 from .validation import real, vector
 
 __all__ = ["InvertedTripod", "SINGULAR_ANGLE", "ELEMENTS", "tripod_geometry_expr",
