@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from symcushion.layout import output_layout, quat_from_axis_angle_np, state_layout
-from symcushion.measures import MEASURES, measures_function
+from symcushion.measures import MEASURES, measures_function, support_edges
 from symcushion.simulate import build_model, initial_state
 
 #: Agreement of quantities computed two ways in double precision from O(1..10) inputs.
@@ -86,3 +86,64 @@ def test_frictionless_scene_has_no_mu_entry(fig3_scene):
         model.pack_params(inertia=np.array([[1.0, 2.0, 0.0], [0.0, 1.0, 0.0], [0, 0, 1.0]]))
     with pytest.raises(ValueError, match="`mass`"):
         model.pack_params(mass=np.nan)
+
+
+def _square_stance(scene, *, velocity=(0.0, 0.0, 0.0), omega=(0.0, 0.0, 0.0), height=0.8):
+    """State of a lander whose four feet stand at (±D, 0, 0), (0, ±D, 0), centre `height` up."""
+    xl = state_layout(len(scene.legs))
+    D = 0.7
+    feet = np.array([[D, 0, 0], [0, D, 0], [-D, 0, 0], [0, -D, 0]], dtype=float)
+    return xl.pack(position=[0.0, 0.0, height], velocity=velocity,
+                   attitude=[1.0, 0.0, 0.0, 0.0], angular_velocity=omega, foot=feet,
+                   contact=np.ones(4), force_body=np.zeros((4, 3))), D
+
+
+def test_tip_surplus_at_rest_is_the_lift_over_the_edge(fig3_scene):
+    """A level lander at rest needs r − H of lift to pass over an edge (r: edge to centre)."""
+    scene = fig3_scene
+    f = measures_function(scene)
+    model = build_model(scene)
+    x, D = _square_stance(scene)
+    y = np.zeros(output_layout(4).size)
+    surplus = np.asarray(f.call(dict(x=x, y=y, p=model.default_p))["tip_surplus"]).ravel()
+    a = D / np.sqrt(2)                          # the edges are at D/√2 from the axis
+    H = 0.8
+    assert surplus.shape == (4,)
+    np.testing.assert_allclose(surplus, H - np.hypot(H, a), atol=ROUND_OFF)
+
+
+def test_tip_surplus_counts_the_rotation_that_lifts_the_centre_of_mass(fig3_scene):
+    """Rolling towards an edge with ½ I_e Ω² = m g (r − H) has zero surplus over it."""
+    scene = fig3_scene
+    f = measures_function(scene)
+    model = build_model(scene)
+    m, I, g = scene.body.mass, scene.body.inertia[0, 0], 9.81
+    H, D = 0.8, 0.7
+    a = D / np.sqrt(2)
+    r = np.hypot(H, a)
+    I_e = m * r ** 2 + I
+    omega = np.sqrt(2 * m * g * (r - H) / I_e)
+    # edge of feet 0 (D, 0) and 3 (0, −D): outward normal (1, −1)/√2; rotating about
+    # u = (1, 1)/√2 moves the centre of mass outward and up; the other way, in and down
+    u = np.array([1.0, 1.0, 0.0]) / np.sqrt(2)
+    for sign, expected in ((1.0, 0.0), (-1.0, H - r)):
+        w = sign * omega * u
+        d = np.array([-a / np.sqrt(2), a / np.sqrt(2), H])       # edge → centre of mass
+        v = np.cross(w, d)                                        # pivoting on the edge
+        x, _ = _square_stance(scene, velocity=v, omega=w)
+        y = np.zeros(output_layout(4).size)
+        s = np.asarray(f.call(dict(x=x, y=y, p=model.default_p))["tip_surplus"]).ravel()
+        edges = [set(e) for e in support_edges(scene)]
+        k = edges.index({0, 3})
+        assert s[k] == pytest.approx(expected, abs=1e-12), sign
+
+
+def test_support_edges_follow_the_legs_azimuth(fig3_scene):
+    scene = fig3_scene
+    edges = support_edges(scene)
+    assert len(edges) == 4 and all(len(set(e)) == 2 for e in edges)
+    # every leg in two edges, consecutive legs (90° apart) joined
+    assert sorted(j for e in edges for j in e) == [0, 0, 1, 1, 2, 2, 3, 3]
+    assert {frozenset(e) for e in edges} == {frozenset(e) for e in ((0, 1), (1, 2), (2, 3),
+                                                                     (3, 0))}
+    assert support_edges(scene.with_(legs=scene.legs[:2])) == []

@@ -10,13 +10,14 @@ import copy
 import json
 import math
 
+import casadi as ca
 import numpy as np
 import pytest
 
 from symcushion import envelope as ev
 from symcushion.codegen import find_compiler
 from symcushion.robust import CHECKS, EnvelopeDesign, saturate
-from symcushion.robust.select import select_scenarios, worst_margin
+from symcushion.robust.select import left_out, select_scenarios, worst_margin
 from symcushion.robust.study import robust_study_from_dict, run_robust_study
 
 needs_cc = pytest.mark.skipif(find_compiler() is None, reason="needs a C compiler")
@@ -65,15 +66,18 @@ def test_saturate_is_the_identity_up_to_the_limit_and_levels_off():
 def test_select_scenarios_takes_failures_near_the_boundary_by_class():
     cls = np.array(["stable"] * 6 + ["tip_over"] * 4 + ["stroke"] * 2 + ["no_touchdown"])
     margins = np.array([0.5, 0.01, 0.2, 0.03, 0.9, 0.02,      # stable
-                        -0.05, -3.0, -0.4, -0.2,              # tip-overs, one hopeless
-                        -0.1, -0.5, 0.3])
+                        -0.05, -3.0, -0.4, -0.2,              # tip-overs, one deep
+                        -0.1, -3.0, 0.3])                     # strokes, one hopeless
     columns = {"class": cls, "margin_tip_over": margins,
                "margin_stroke": np.ones(cls.size)}
     idx = select_scenarios(columns, 5, fail_share=0.6)
     # 3 failures (2 tip-overs, 1 stroke: the counts' proportion), closest first,
     # then the 2 stable cases with the smallest margins
     assert list(idx) == [1, 5, 6, 9, 10]
-    assert 7 not in select_scenarios(columns, 13, fail_share=1.0)   # margin −3 < −1
+    every = select_scenarios(columns, 13, fail_share=1.0)
+    assert 7 in every                 # a tip-over of any depth: its energy margin can move
+    assert 11 not in every            # a stroke failure 300 % over its limit: left out
+    assert left_out(columns) == {"stroke": 1}
     assert np.array_equal(worst_margin(columns), np.minimum(margins, 1.0))
     with pytest.raises(ValueError, match="`n`"):
         select_scenarios(columns, 0)
@@ -262,3 +266,29 @@ def test_dask_evaluation_equals_threads(run):
     finally:
         client.close()
         cluster.close()
+
+
+def test_the_run_says_which_failures_the_scenarios_stand_for():
+    from symcushion.robust.study import _representation
+    cls = np.array(["stable", "tip_over", "tip_over", "rebound", "rebound", "no_touchdown"])
+    columns = {"class": cls, "margin_tip_over": np.array([0.2, -5.0, -0.1, 0.5, 0.5, 0.0]),
+               "margin_rebound": np.array([0.3, 0.5, 0.5, -0.2, -2.5, 0.0])}
+    lines = _representation(columns, -1.0)
+    assert lines[0] == "pool failures: rebound 2, tip_over 2"
+    assert "every depth" in lines[1] and "tip_over" in lines[1]
+    assert lines[2].startswith("left out (worst margin below -1") and "rebound 1" in lines[2]
+    assert "robust.worst_margin" in lines[2]
+    calm = {"class": np.array(["stable"]), "margin_tip_over": np.array([0.4])}
+    assert "no failure" in _representation(calm, -1.0)[0]
+
+
+def test_tip_energy_samples_fade_past_the_tilt_limit():
+    from symcushion.robust.margins import TIP_FADED, tip_energy
+    limits = {"tip_energy": 0.1, "tip_over": np.radians(35.0)}
+    surplus = ca.DM([0.05, -0.2])
+    upright = np.asarray(ca.evalf(tip_energy(surplus, 0.0, limits))).ravel()
+    np.testing.assert_allclose(upright, [1.5, -1.0], rtol=1e-12)
+    lying = np.asarray(ca.evalf(tip_energy(surplus, 1.0, limits))).ravel()  # 90° tilt
+    np.testing.assert_allclose(lying, TIP_FADED, atol=1e-9)
+    assert float(ca.evalf(tip_energy(ca.DM(0, 1), 0.0, limits))) == 0.0
+    assert float(ca.evalf(tip_energy(surplus, 0.0, {"tip_over": 0.5})[0])) == 0.0

@@ -14,7 +14,12 @@ the true maximum and at most ln(K)/ρ above it for K samples; near a single
 sharp peak it is within a few 1/ρ of it.
 
 Ratios, in :data:`CHECKS` order, are value/limit of: the tilt of the body
-axis from the true vertical as (1 − cos)/(1 − cos tilt_max); the axial
+axis from the true vertical as (1 − cos)/(1 − cos tilt_max); the tip-over
+energy of the support polygon's edges as 1 + surplus/unit (``tip_surplus``
+of :mod:`symcushion.measures`, ≥ 0 once the body has the energy to pass
+over an edge; see :func:`tip_energy`), which keeps a gradient where the
+tilt has none (a lander that tips over reaches the same tilt whatever the
+design, while its surplus falls as the stance widens); the axial
 stroke ±δ_S; the hinge angles ±β and ±(γ − γ₀); the norm of the specific
 force low-pass filtered as in the envelope (``DECEL_FILTER_TIME``); the
 upward speed; and the motion at the end: the mean of (|v| + |ω|·reach) over
@@ -42,7 +47,8 @@ from ..touchdown import StepModel
 __all__ = ["CHECKS", "REST_WINDOW", "DEFAULT_SHARPNESS", "margins_function"]
 
 #: The aggregated ratios, in output order.
-CHECKS = ("tip_over", "stroke", "beta", "gamma", "deceleration", "rebound", "moving")
+CHECKS = ("tip_over", "tip_energy", "stroke", "beta", "gamma", "deceleration", "rebound",
+          "moving")
 
 #: The at-rest ratio is aggregated over this last part of the horizon (s):
 #: long enough to hold several periods of a chatter between branches (one or
@@ -56,6 +62,13 @@ REST_WINDOW = 0.2
 #: samples more than 0.05 below the peak are below e^-10.
 DEFAULT_SHARPNESS = 200.0
 
+#: Width of the fade of the tip-over energy samples past the tilt limit, in
+#: units of the tilt ratio (1 − cos)/(1 − cos tilt_max): they are half faded
+#: at the limit and gone 10 % beyond it.
+TIP_GATE_WIDTH = 0.05
+#: What a faded tip-over energy sample is worth: far below any sample of an
+#: upright lander (a surplus of −10 units), so it never sets the aggregate.
+TIP_FADED = -9.0
 #: Start of the running maximum: far below any ratio, so the first sample
 #: takes over (exp(ρ·(−1e3)) underflows to 0 exactly).
 _FLOOR = -1e3
@@ -70,6 +83,27 @@ def _ks_update(m, s, samples, rho):
     return m1, total
 
 
+def tip_energy(surplus, one_minus_cos_tilt, limits):
+    """Samples of the ``tip_energy`` check: 1 + surplus/limit, while the body is upright.
+
+    ``surplus`` is the tip-over energy surplus of every support edge in m of
+    lift (``tip_surplus`` of :mod:`symcushion.measures`), ``limits["tip_energy"]``
+    the lift that counts as one unit of margin. Beyond the tilt limit a lander
+    has tipped and lies on another face, where the support polygon means
+    nothing: the samples fade out there (:data:`TIP_GATE_WIDTH`), so that the
+    aggregate is the largest surplus of the touchdown itself.
+    """
+    unit, tilt = limits.get("tip_energy"), limits.get("tip_over")
+    if unit is None or surplus.numel() == 0:
+        return ca.SX.zeros(1)
+    ratio = 1 + surplus / unit
+    if tilt is None:
+        return ratio
+    over = (one_minus_cos_tilt - (1 - np.cos(tilt))) / (1 - np.cos(tilt))
+    gate = 0.5 * (1 - ca.tanh(over / TIP_GATE_WIDTH))
+    return gate * ratio + (1 - gate) * TIP_FADED
+
+
 def margins_function(model: StepModel, steps: int, limits: dict, *,
                      sharpness: float = DEFAULT_SHARPNESS, design=None,
                      reach: float = 0.0) -> ca.Function:
@@ -82,8 +116,9 @@ def margins_function(model: StepModel, steps: int, limits: dict, *,
     steps : int
         Steps of the horizon (≥ 1).
     limits : dict
-        ``{check: limit}`` for the names of :data:`CHECKS` (tilt in rad, stroke
-        in m, β and γ in rad, deceleration in m/s², rebound and moving in
+        ``{check: limit}`` for the names of :data:`CHECKS` (tilt in rad, the
+        unit of the tip-over energy surplus in m, stroke in m,
+        β and γ in rad, deceleration in m/s², rebound and moving in
         m/s). A check whose limit is None or missing gets ratio 0.
     sharpness : float
         ρ of the KS aggregate (:data:`DEFAULT_SHARPNESS`).
@@ -141,6 +176,7 @@ def margins_function(model: StepModel, steps: int, limits: dict, *,
         return values / limit
 
     samples = [ratio("tip_over", meas["one_minus_cos_tilt"]),
+               tip_energy(meas["tip_surplus"], meas["one_minus_cos_tilt"], limits),
                ratio("stroke", ca.vertcat(meas["stroke"][axial], -meas["stroke"][axial]))
                if axial else ca.SX.zeros(1),
                ratio("beta", ca.vertcat(meas["beta"], -meas["beta"])),

@@ -59,6 +59,15 @@ DEFAULT_ALPHA = 0.5
 #: whatever the design does; its gradient is then below 1e-3 of a ratio's
 #: near the limit (sech²(5) once r is 11).
 DEFAULT_SATURATION = 3.0
+#: Unit of the tip-over energy margin in a study with a tilt limit (m of
+#: lift of the centre of mass; ``tip_surplus`` of symcushion.measures): the
+#: ``tip_energy`` ratio is 1 + surplus/unit, 1 when the body has just the
+#: energy to pass over an edge of its support polygon (the rigid-pivot
+#: criterion, on the safe side: the pivot legs' strokes take energy out).
+#: 0.1 m spreads the example lander's stable touchdowns over ratios of about
+#: 0 to 1.4 (docs/optimise.md); a study may set another with
+#: ``robust.tip_energy``.
+DEFAULT_TIP_ENERGY = 0.1
 #: Horizon of a scenario when none is given: the envelope study's own
 #: duration, so that the at-rest check is taken where the verification takes
 #: it (a lander that tips goes past the 35° limit within about a second of
@@ -180,7 +189,8 @@ class EnvelopeDesign(_DesignSpace, _GradientCheck):
                  horizon: float | None = DEFAULT_HORIZON, risk: str = "cvar",
                  alpha: float = DEFAULT_ALPHA, saturation: float = DEFAULT_SATURATION,
                  sharpness: float = DEFAULT_SHARPNESS, shapes=(), threads: int | None = None,
-                 client=None, cache_dir=None, progress: bool = False):
+                 client=None, cache_dir=None, progress: bool = False,
+                 tip_energy: float | None = DEFAULT_TIP_ENERGY):
         started = time.perf_counter()
         if not isinstance(study, EnvelopeStudy):
             raise TypeError(f"`study` must be an EnvelopeStudy, got {type(study).__name__}.")
@@ -217,7 +227,9 @@ class EnvelopeDesign(_DesignSpace, _GradientCheck):
                              tilt=None if lim.tilt_deg is None else math.radians(lim.tilt_deg),
                              rebound_speed=lim.rebound_speed, deceleration=lim.deceleration,
                              sink_speed=None)
-        self._limits = dict(tip_over=self.limits.tilt, stroke=lim.stroke, beta=lim.beta,
+        self._limits = dict(tip_over=self.limits.tilt,
+                            tip_energy=None if self.limits.tilt is None else tip_energy,
+                            stroke=lim.stroke, beta=lim.beta,
                             gamma=lim.gamma, deceleration=lim.deceleration,
                             rebound=lim.rebound_speed, moving=lim.rest_speed)
         self.checks = [c for c in CHECKS if self._limits[c] is not None]

@@ -2,8 +2,9 @@
 
 Owns the rule that picks, from the classified cases of an envelope run on
 the starting design, the touchdowns the optimiser sees: failures that a
-design can plausibly turn (their worst margin not below ``worst_margin``)
-and stable cases close to a limit, each group ordered by how close it is to
+design can plausibly turn (their worst margin not below ``worst_margin``;
+tip-overs of every depth, whose tip-over energy margin keeps a gradient
+however far the body tipped) and stable cases close to a limit, each group ordered by how close it is to
 the boundary and spread over the failure classes in proportion to their
 counts. It must not run, classify or optimise.
 """
@@ -11,8 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["MARGINS", "DEFAULT_WORST_MARGIN", "DEFAULT_FAIL_SHARE", "worst_margin",
-           "select_scenarios"]
+__all__ = ["MARGINS", "DEFAULT_WORST_MARGIN", "DEFAULT_FAIL_SHARE", "ANY_DEPTH", "worst_margin",
+           "select_scenarios", "left_out"]
 
 #: Margin columns of the envelope's classification that the design acts on.
 MARGINS = ("margin_tip_over", "margin_stroke", "margin_deflection", "margin_deceleration",
@@ -21,6 +22,12 @@ MARGINS = ("margin_tip_over", "margin_stroke", "margin_deflection", "margin_dece
 #: a limit (a tilt of twice the limit, a rebound at twice the limit speed) is
 #: one no change of the curves turns, and it would only flatten the risk.
 DEFAULT_WORST_MARGIN = -1.0
+#: Failure classes kept whatever their worst margin. A tip-over's tilt margin
+#: says nothing of how near it came to staying up (every tipped lander ends on
+#: its side), while the design's tip-over energy margin
+#: (symcushion.robust.margins) falls smoothly as the stance widens or the
+#: legs take more energy: a deep tip-over is one the geometry can turn.
+ANY_DEPTH = ("tip_over",)
 #: Share of the scenarios taken from the failures; the rest are stable cases
 #: with the smallest margins, so that the design does not buy the failures
 #: with new ones.
@@ -63,7 +70,7 @@ def select_scenarios(columns: dict, n: int, *, fail_share: float = DEFAULT_FAIL_
         raise ValueError(f"`fail_share` must be in [0, 1], got {fail_share!r}.")
     cls = np.asarray(columns["class"])
     margin = worst_margin(columns)
-    failing = (cls != "stable") & (cls != "no_touchdown") & (margin >= worst)
+    failing = _candidates(cls, margin, worst)
     stable = cls == "stable"
     n_fail = min(int(round(fail_share * n)), int(failing.sum()))
     n_stable = min(n - n_fail, int(stable.sum()))
@@ -77,6 +84,26 @@ def select_scenarios(columns: dict, n: int, *, fail_share: float = DEFAULT_FAIL_
     idx = np.flatnonzero(stable)
     chosen += list(idx[np.argsort(margin[idx], kind="stable")][:n_stable])
     return np.sort(np.asarray(chosen, dtype=int))
+
+
+def _candidates(cls, margin, worst) -> np.ndarray:
+    """Failures a design can plausibly turn: within ``worst``, or of a class in ANY_DEPTH."""
+    failed = (cls != "stable") & (cls != "no_touchdown")
+    return failed & ((margin >= worst) | np.isin(cls, ANY_DEPTH))
+
+
+def left_out(columns: dict, *, worst: float = DEFAULT_WORST_MARGIN) -> dict:
+    """Failures that are no candidates, counted by class: ``{class: count}``.
+
+    They failed a limit by more than ``-worst`` of it (a rebound at twice the
+    limit speed, say), which no change of the design turns; the scenarios do
+    not represent them, and the CLI says so.
+    """
+    cls = np.asarray(columns["class"])
+    failed = (cls != "stable") & (cls != "no_touchdown")
+    out = failed & ~_candidates(cls, worst_margin(columns), worst)
+    classes, counts = np.unique(cls[out], return_counts=True)
+    return {str(c): int(n) for c, n in zip(classes, counts)}
 
 
 def _apportion(counts, total: int) -> list:

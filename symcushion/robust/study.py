@@ -27,9 +27,11 @@ from ..envelope.runner import run_envelope
 from ..envelope.study import EnvelopeStudy, study_from_dict as envelope_from_dict
 from ..optimise.study import read_design_table, _Fields
 from ..scene import read_toml
-from .problem import (DEFAULT_ALPHA, DEFAULT_HORIZON, DEFAULT_SATURATION, EnvelopeDesign, RISKS)
+from .problem import (DEFAULT_ALPHA, DEFAULT_HORIZON, DEFAULT_SATURATION, DEFAULT_TIP_ENERGY,
+                      EnvelopeDesign, RISKS)
 from .margins import DEFAULT_SHARPNESS
-from .select import DEFAULT_FAIL_SHARE, DEFAULT_WORST_MARGIN, select_scenarios
+from .select import (ANY_DEPTH, DEFAULT_FAIL_SHARE, DEFAULT_WORST_MARGIN, left_out,
+                     select_scenarios)
 
 __all__ = ["RobustStudy", "robust_study_from_dict", "load_robust_study", "run_robust_study"]
 
@@ -58,6 +60,9 @@ class RobustStudy:
     fail_share, worst_margin : float
         Selection (:func:`~.select.select_scenarios`).
     horizon, alpha, saturation, sharpness : float
+    tip_energy : float or None
+        Unit of the tip-over energy margin (m of lift;
+        :data:`~.problem.DEFAULT_TIP_ENERGY`); None leaves the check out.
     risk : str
     ipopt : dict
     """
@@ -76,6 +81,7 @@ class RobustStudy:
     alpha: float = DEFAULT_ALPHA
     saturation: float = DEFAULT_SATURATION
     sharpness: float = DEFAULT_SHARPNESS
+    tip_energy: float | None = DEFAULT_TIP_ENERGY
     ipopt: dict = field(default_factory=dict)
     description: str = ""
     source: str = "<dict>"
@@ -106,6 +112,7 @@ def robust_study_from_dict(data: dict, source: str = "<dict>") -> RobustStudy:
         alpha=rb.get("alpha", DEFAULT_ALPHA, nonnegative=True),
         saturation=rb.get("saturation", DEFAULT_SATURATION, positive=True),
         sharpness=rb.get("sharpness", DEFAULT_SHARPNESS, positive=True),
+        tip_energy=rb.get("tip_energy", DEFAULT_TIP_ENERGY, positive=True),
         ipopt=dict(rb.get("ipopt", {}, kind="any")), description=envelope.description,
         source=source)
     rb.finish()
@@ -182,11 +189,13 @@ def run_robust_study(study: RobustStudy, out_dir=None, *, threads: int | None = 
     names = [f"case{i}_{pool.columns['class'][i]}" for i in idx]
     say(f"{study.name}: 2/4 {idx.size} scenarios selected: "
         + ", ".join(f"{c} {n}" for c, n in Counter(map(str, pool.columns["class"][idx])).items()))
+    for line in _representation(pool.columns, study.worst_margin):
+        say("  " + line)
     t0 = time.perf_counter()
     problem = EnvelopeDesign(study.envelope, conditions, study.variables, names=names,
                              horizon=study.horizon, risk=study.risk, alpha=study.alpha,
                              saturation=study.saturation, sharpness=study.sharpness,
-                             shapes=study.shapes, threads=threads, client=client,
+                             tip_energy=study.tip_energy, shapes=study.shapes, threads=threads, client=client,
                              cache_dir=cache_dir, progress=progress)
     seconds["build"] = time.perf_counter() - t0
     gradient = {}
@@ -222,3 +231,23 @@ def run_robust_study(study: RobustStudy, out_dir=None, *, threads: int | None = 
         run["files"] = write_report(run, out_dir)
     return run
 
+
+
+def _representation(columns: dict, worst: float) -> list:
+    """Lines saying which failures of the pool the scenarios stand for, and which not."""
+    cls = [str(c) for c in columns["class"]]
+    failures = Counter(c for c in cls if c not in ("stable", "no_touchdown"))
+    if not failures:
+        return ["the pool has no failure: the scenarios are its stable cases nearest a limit"]
+    out = left_out(columns, worst=worst)
+    lines = ["pool failures: " + ", ".join(f"{c} {n}" for c, n in sorted(failures.items()))]
+    kept = [c for c in ANY_DEPTH if c in failures]
+    if kept:
+        lines.append("represented at every depth (their energy margin has a gradient): "
+                     + ", ".join(kept))
+    if out:
+        lines.append(f"left out (worst margin below {worst:g}: over their limit by more than "
+                     f"{-worst:.0%} of it, beyond what the design turns): "
+                     + ", ".join(f"{c} {n}" for c, n in sorted(out.items()))
+                     + "; set `robust.worst_margin` lower to include them")
+    return lines
