@@ -188,9 +188,22 @@ def test_study_key_compile_selects_the_compiled_path():
 
     from symcushion.optimise import study_from_dict
     data = tomllib.loads(ABSORBER.read_text())
-    assert load_study(ABSORBER).compiled is False
+    assert load_study(ABSORBER).compiled is None         # unsaid: compile where gcc is found
     data["solver"]["compile"] = True
     assert study_from_dict(data, str(ABSORBER), base_dir=ABSORBER.parent).compiled is True
     data["solver"]["compile"] = "yes"
     with pytest.raises(ValueError, match="compile"):
         study_from_dict(data, str(ABSORBER), base_dir=ABSORBER.parent)
+
+
+def test_a_study_that_says_nothing_compiles_where_gcc_is_found(monkeypatch):
+    """``compile`` unsaid: the C path with a compiler, the VM with a message without one."""
+    from symcushion.optimise import study as study_module
+    said = []
+    monkeypatch.setattr(study_module, "find_compiler", lambda: "/usr/bin/gcc")
+    assert study_module.resolve_compiled(None, said.append) is True and not said
+    monkeypatch.setattr(study_module, "find_compiler", lambda: None)
+    assert study_module.resolve_compiled(None, said.append) is False
+    assert len(said) == 1 and "no C compiler found" in said[0] and "compile = false" in said[0]
+    assert study_module.resolve_compiled(False, said.append) is False
+    assert study_module.resolve_compiled(True, said.append) is True and len(said) == 1

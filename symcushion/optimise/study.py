@@ -15,6 +15,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from ..cbuild import find_compiler
 from ..layout import quat_to_rot_np
 from ..obstacles import closest_obstacle
 from ..scene import Scene, _Table, read_toml, scene_from_dict
@@ -55,12 +56,33 @@ class Study:
     ipopt: dict
     source: str = ""
     description: str = ""
-    compiled: bool = False
+    compiled: bool | None = None
 
     def solve(self, progress=False) -> DesignResult:
-        result = self.problem.solve(ipopt=self.ipopt, progress=progress, compiled=self.compiled)
+        """Solve the design; ``compiled`` None (the default) compiles where gcc is found."""
+        compiled = resolve_compiled(self.compiled, say=print if progress else None)
+        result = self.problem.solve(ipopt=self.ipopt, progress=progress, compiled=compiled)
         result.meta.update(name=self.name, source=self.source, description=self.description)
         return result
+
+
+def resolve_compiled(compiled: bool | None, say=None) -> bool:
+    """Whether to evaluate the rollouts in compiled C: ``compiled``, or if None, gcc's presence.
+
+    The compiled path is about ten times faster on the lander design
+    (docs/optimise.md, "Compiled rollouts and Jacobian"), so a study that
+    says nothing uses it wherever a C compiler is found (``$CC`` or gcc);
+    without one it runs on CasADi's VM and ``say`` (e.g. print) is told why.
+    """
+    if compiled is not None:
+        return bool(compiled)
+    if find_compiler() is not None:
+        return True
+    if say is not None:
+        say("no C compiler found (install gcc or set $CC): the rollouts run on CasADi's "
+            "VM, about ten times slower; `compile = false` under [solver] says so and "
+            "silences this.")
+    return False
 
 
 def load_study(path) -> Study:
@@ -128,10 +150,10 @@ def study_from_dict(data: dict, source: str = "<dict>", base_dir=".") -> Study:
                     deceleration=lim.get("deceleration", None, positive=True))
     lim.finish()
 
-    ipopt, compiled = {}, False
+    ipopt, compiled = {}, None                                 # None: compile where gcc is found
     if top.has("solver"):
         so = top.get("solver", kind="table")
-        compiled = so.get("compile", False, kind="bool")   # C rollouts (compiled_nlp)
+        compiled = so.get("compile", None, kind="bool")    # C rollouts (compiled_nlp)
         if so.has("max_iter"):
             ipopt["max_iter"] = so.get("max_iter", kind="int")
         if so.has("tol"):
