@@ -292,3 +292,26 @@ def test_tip_energy_samples_fade_past_the_tilt_limit():
     np.testing.assert_allclose(lying, TIP_FADED, atol=1e-9)
     assert float(ca.evalf(tip_energy(ca.DM(0, 1), 0.0, limits))) == 0.0
     assert float(ca.evalf(tip_energy(surplus, 0.0, {"tip_over": 0.5})[0])) == 0.0
+
+
+@needs_cc
+def test_the_outer_loop_keeps_the_round_with_the_best_held_out_p_stable(tmp_path):
+    """Rounds re-select scenarios at the last optimum; the loop stops when P stops rising."""
+    data = copy.deepcopy(TINY)
+    data["robust"].update(rounds=2, check=32, ipopt={"max_iter": 15})
+    study = robust_study_from_dict(data, "tiny.toml")
+    assert study.check_seed == 10                      # the pool's seed + 1
+    run = run_robust_study(study, None, threads=2, verify=False, cache_dir=tmp_path,
+                           progress=False)
+    loop = run["rounds"]
+    assert loop is not None and 1 <= len(loop["rounds"]) <= 2
+    p = [r["held_out"]["p"] for r in loop["rounds"]]
+    start = loop["start"]["p"]
+    assert p[0] > start                                 # the first round helps here
+    kept = max(range(len(p)), key=lambda k: p[k])
+    assert run["result"].design == loop["rounds"][kept]["design"]
+    if len(p) == 2 and p[1] > p[0]:
+        assert run["result"].objective_start == pytest.approx(
+            loop["rounds"][1]["risk_start"])            # round 2 started from round 1's optimum
+    with pytest.raises(ValueError, match="check_seed"):
+        robust_study_from_dict(dict(data, robust=dict(data["robust"], check_seed=9)), "x")

@@ -359,8 +359,8 @@ class EnvelopeDesign(_DesignSpace, _GradientCheck):
         return float(f), np.asarray(g, dtype=float).ravel()
 
     # -- solve ------------------------------------------------------------------
-    def solve(self, ipopt: dict | None = None, progress=False) -> RobustResult:
-        """Solve the scenario NLP with Ipopt from the study's curves.
+    def solve(self, ipopt: dict | None = None, progress=False, theta0=None) -> RobustResult:
+        """Solve the scenario NLP with Ipopt from the study's curves (or ``theta0``).
 
         Parameters
         ----------
@@ -370,18 +370,21 @@ class EnvelopeDesign(_DesignSpace, _GradientCheck):
         progress : bool or callable
             True prints one line per iteration; a callable receives each
             iteration's dict (iteration, risk, scenarios within, seconds).
+        theta0 : array_like, shape (n_variables,), optional
+            Start here instead of the study's design (an earlier round's
+            optimum); within the bounds.
         """
         started = time.perf_counter()
-        x0 = self.scaled(self.initial)
+        start = self._start(theta0)
+        x0 = self.scaled(start)
         nv = self.n_variables
         lbx = np.concatenate([self.lower / self.scale, [-1.0],
                               np.zeros(x0.size - nv - 1)])
         ubx = np.concatenate([self.upper / self.scale, [self.saturation],
                               np.full(x0.size - nv - 1, np.inf)])
         history = []
-        R0 = self.ratios(self.initial)
-        best = dict(risk=self.risk_of(self.losses(self.initial))[0], theta=self.initial.copy(),
-                    iteration=-1)
+        R0 = self.ratios(start)
+        best = dict(risk=self.risk_of(self.losses(start))[0], theta=start.copy(), iteration=-1)
 
         shape_rows = np.concatenate([np.arange(b.start, b.stop) for b in self.blocks
                                      if b.kind == "shape"] + [np.zeros(0, int)]).astype(int)
@@ -428,7 +431,7 @@ class EnvelopeDesign(_DesignSpace, _GradientCheck):
             theta=theta, var_names=list(self.var_names), return_status=stats["return_status"],
             iterations=int(stats.get("iter_count", 0)), ratios_start=R0,
             ratios=self.ratios(theta), checks=list(CHECKS), scenarios=list(self.names),
-            objective_start=self.risk_of(self.losses(self.initial))[0], objective=objective,
+            objective_start=self.risk_of(self.losses(start))[0], objective=objective,
             multipliers=self._multipliers(np.asarray(sol["lam_g"], dtype=float).ravel(),
                                           np.asarray(sol["lam_x"], dtype=float).ravel(), x,
                                           np.asarray(sol["g"], dtype=float).ravel()),
@@ -440,6 +443,20 @@ class EnvelopeDesign(_DesignSpace, _GradientCheck):
                          jacobian_seconds=self._ratios.jacobian_calls[1],
                          threads=self.threads, design_taken=chosen,
                          final_risk=final_risk))
+
+    def _start(self, theta0) -> np.ndarray:
+        """The design to start from: ``theta0`` checked against the bounds, or the study's."""
+        if theta0 is None:
+            return self.initial
+        theta = np.asarray(theta0, dtype=float).ravel()
+        if theta.shape != self.initial.shape or not np.all(np.isfinite(theta)):
+            raise ValueError(f"`theta0` must hold {self.initial.size} finite values (one per "
+                             f"design variable {self.var_names}), got {theta0!r}.")
+        outside = (theta < self.lower) | (theta > self.upper)
+        if np.any(outside):
+            names = [n for n, o in zip(self.var_names, outside) if o]
+            raise ValueError(f"`theta0` is outside the bounds of {names}; start within them.")
+        return theta
 
     def _multipliers(self, lam_g, lam_x, x, g) -> dict:
         """Which scenarios, checks, bounds and shapes bind at Ipopt's last iterate.

@@ -54,6 +54,7 @@ def write_report(run: dict, out_dir) -> dict:
         before=_envelope_block(run.get("before")), after=_envelope_block(run.get("after")),
         characteristics=dict(start=problem.characteristics(problem.initial),
                              optimum=problem.characteristics(res.theta)),
+        outer_loop=run.get("rounds"),
         seconds=run["seconds"], timings=res.timings, history=res.history,
         versions=versions())
     files["result"] = atomic_write_text(out / "result.json", to_json(jsonable(summary)))
