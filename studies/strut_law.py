@@ -36,7 +36,8 @@ import numpy as np
 from symcushion import HingedStrut, Linear
 from symcushion.envelope.cases import case_params, initial_states
 from symcushion.envelope.study import load_study
-from symcushion.layout import output_layout, state_layout, tilt_np
+from symcushion.layout import output_layout, state_layout
+from symcushion.quaternion import tilt_np
 from symcushion.obstacles import Plane
 from symcushion.scene import Scene, load_scene, symmetric_legs
 from symcushion.touchdown import build_model, initial_state

@@ -43,7 +43,8 @@ from .cbuild import CFLAGS, CODEGEN_OPTIONS, WARNINGS, _run_parallel, find_compi
 from .codegen import _c_string
 from .layout import (BODY_OUT_FIELDS, BODY_STATE_FIELDS, FOOTPAD_FIELD, LEG_GEOMETRY_FIELDS,
                      LEG_OUT_FIELDS, MODES, SCENE_PARAM_FIELDS, TRIPOD_GEOMETRY_FIELDS,
-                     output_layout, quat_to_rot_np, state_layout)
+                     output_layout, state_layout)
+from .quaternion import quat_to_rot_np
 from .results import check_output_file, replacing
 from .scene import Scene, load_scene
 from .touchdown import StepModel, build_model, initial_state

@@ -28,7 +28,7 @@ from .branch_switch import branch_flip, locates_switch, stored_branch, switch_in
 from .contact import contact_step_call
 from .contact_guards import at_least, at_most
 from .contact_midpoint import midpoint_slip_call
-from .layout import quat_exp, quat_mul, quat_to_rot
+from .quaternion import quat_exp, quat_mul, quat_to_rot
 from .obstacles import Plane, closest_obstacle
 from .stroke_lock import axial_branches, skip_unless
 

@@ -17,8 +17,8 @@ import math
 
 import casadi as ca
 
-from .layout import (footpads, one_minus_cos_tilt, output_layout, param_layout, quat_to_rot,
-                     state_layout)
+from .layout import footpads, output_layout, param_layout, state_layout
+from .quaternion import one_minus_cos_tilt, quat_to_rot
 from .obstacles import closest_obstacle
 
 __all__ = ["MEASURES", "measures_function", "support_edges", "tip_surplus"]

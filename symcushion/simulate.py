@@ -12,8 +12,8 @@ import sys
 import types
 
 from .driver import Trajectory, save, simulate, trajectory_from
-from .layout import (BODY_OUT, BODY_STATE, LEG_OUT, LEG_STATE, MODES, quat_exp, quat_mul,
-                     quat_to_rot)
+from .layout import BODY_OUT, BODY_STATE, LEG_OUT, LEG_STATE, MODES
+from .quaternion import quat_exp, quat_mul, quat_to_rot
 from .stability import STABILITY_SAFETY, stable_dt
 from .stability import _body_stiffness  # noqa: F401
 from .touchdown import (MAX_HALVINGS, STEP_CRITERION_EPS, StepModel, build_model,

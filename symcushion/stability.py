@@ -12,7 +12,8 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from .layout import quat_exp, quat_to_rot, quat_to_rot_np, state_layout
+from .layout import state_layout
+from .quaternion import quat_exp, quat_to_rot, quat_to_rot_np
 from .touchdown import StepModel, _leg_params
 
 __all__ = ["STABILITY_SAFETY", "stable_dt"]

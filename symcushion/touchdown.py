@@ -80,8 +80,8 @@ import numpy as np
 from .branch_switch import branch_flip, branch_switch_kick, locates_switch
 from .foot_step import FeetStep, LegInput, StepPoses
 from .layout import (BODY_OUT, BODY_STATE, LEG_OUT, LEG_STATE, MODES, ParamLayout, default_p,
-                     footpads, output_layout, param_layout, quat_exp, quat_mul, quat_to_rot,
-                     quat_to_rot_np, state_layout)
+                     footpads, output_layout, param_layout, state_layout)
+from .quaternion import quat_exp, quat_mul, quat_to_rot, quat_to_rot_np
 from .obstacles import closest_obstacle
 from .scene import Scene
 from .validation import real

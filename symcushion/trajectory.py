@@ -14,7 +14,8 @@ import casadi as ca
 import numpy as np
 
 from .obstacles import closest_obstacle
-from .layout import MODES, output_layout, quat_to_rot_np, state_layout
+from .layout import MODES, output_layout, state_layout
+from .quaternion import quat_to_rot_np
 from .touchdown import StepModel
 
 __all__ = ["Trajectory", "trajectory_from", "initial_output", "contact_points",

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from symcushion import layout
-from symcushion.layout import (output_columns, output_layout, quat_exp, quat_from_axis_angle_np,
-                               quat_mul, quat_mul_np, quat_to_rot, quat_to_rot_np, state_columns,
-                               state_layout, tilt, tilt_np)
+from symcushion.layout import output_columns, output_layout, state_columns, state_layout
+from symcushion.quaternion import (quat_exp, quat_from_axis_angle_np, quat_mul, quat_mul_np,
+                                   quat_to_rot, quat_to_rot_np, tilt, tilt_np)
 
 ROUND_OFF = 1e-14      # a few ulps of O(1) quantities
 

@@ -3,7 +3,8 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from symcushion.layout import output_layout, quat_from_axis_angle_np, state_layout
+from symcushion.layout import output_layout, state_layout
+from symcushion.quaternion import quat_from_axis_angle_np
 from symcushion.measures import MEASURES, measures_function, support_edges
 from symcushion.simulate import build_model, initial_state
 

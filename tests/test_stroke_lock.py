@@ -20,7 +20,8 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from symcushion.layout import quat_to_rot_np, state_layout
+from symcushion.layout import state_layout
+from symcushion.quaternion import quat_to_rot_np
 from symcushion.scene import load_scene, read_toml, scene_from_dict
 from symcushion.simulate import build_model, initial_state, simulate
 from symcushion import touchdown

@@ -130,7 +130,7 @@ static void external_kick(double *x, const double *p, const double *u, double ha
     const double m = p[FMU_P_MASS];
     const double *q = x + FMU_X_ATTITUDE;
     const double w = q[0], qx = q[1], qy = q[2], qz = q[3];
-    /* R, body to world, as symcushion.layout.quat_to_rot_np (not renormalised) */
+    /* R, body to world, as symcushion.quaternion.quat_to_rot_np (not renormalised) */
     const double R[3][3] = {
         {1 - 2 * (qy * qy + qz * qz), 2 * (qx * qy - w * qz), 2 * (qx * qz + w * qy)},
         {2 * (qx * qy + w * qz), 1 - 2 * (qx * qx + qz * qz), 2 * (qy * qz - w * qx)},

@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..layout import body_axis_np, state_layout
+from ..layout import state_layout
+from ..quaternion import body_axis_np
 from .cases import SUMMARY
 from .study import Limits
 

@@ -17,7 +17,8 @@ from typing import Callable, Sequence
 import casadi as ca
 import numpy as np
 
-from ..layout import quat_to_rot_np, state_layout
+from ..layout import state_layout
+from ..quaternion import quat_to_rot_np
 from ..obstacles import closest_obstacle
 from ..touchdown import build_model, initial_state
 from .constraints import _Constraints

@@ -16,7 +16,7 @@ import casadi as ca
 import numpy as np
 
 from ..cbuild import find_compiler
-from ..layout import quat_to_rot_np
+from ..quaternion import quat_to_rot_np
 from ..obstacles import closest_obstacle
 from ..scene import Scene, _Table, read_toml, scene_from_dict
 from ..touchdown import initial_state

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..layout import quat_to_rot_np
+from ..quaternion import quat_to_rot_np
 from ..scene import Scene
 from ..touchdown import initial_state
 

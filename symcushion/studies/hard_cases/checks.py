@@ -14,7 +14,8 @@ import casadi as ca
 import numpy as np
 
 from symcushion.characteristics import Linear
-from symcushion.layout import quat_to_rot, quat_to_rot_np, state_layout
+from symcushion.layout import state_layout
+from symcushion.quaternion import quat_to_rot, quat_to_rot_np
 from symcushion.obstacles import closest_obstacle
 from symcushion.scene import Scene
 
