@@ -22,8 +22,8 @@ import pytest
 from symcushion import build_model, initial_state, load_scene, simulate
 from symcushion.cbuild import find_compiler
 from symcushion.characteristics import Crushable, Linear
-from symcushion.fmu import (build_fmu, fmu_variables, held_input_step, model_description,
-                            variables_markdown)
+from symcushion.fmu import build_fmu, held_input_step
+from symcushion.fmu_variables import fmu_variables, model_description, variables_markdown
 from symcushion.layout import output_layout, state_layout
 from symcushion.scene import Body, Scene, symmetric_legs
 from symcushion.obstacles import Plane
