@@ -302,18 +302,21 @@ class _GeometryDesign:
             out.append(G["hinge"] + G["length"] * G["e0"])
         return out
 
-    def _full_p_tail(self, theta, model):
+    def _full_p_tail(self, theta, model, tail=None):
         """The entries of the step's ``p`` after the curve parameters at design θ.
 
-        Without geometry variables the scene's own values as a constant (the
-        graph of a curve-only design is unchanged); with them, the designed legs'
-        geometry blocks (and footpads) as expressions of θ.
+        ``tail``: those entries as they are without the design (default the
+        scene's own values; the envelope's cases give their own μ and gravity).
+        Without geometry variables ``tail`` itself (the graph of a curve-only
+        design is unchanged); with them, the designed legs' geometry blocks (and
+        footpads) as expressions of θ in its place.
         """
         lay = model.params
-        tail = np.asarray(model.default_p[lay.n_leg_params:], dtype=float)
+        if tail is None:
+            tail = ca.DM(np.asarray(model.default_p[lay.n_leg_params:], dtype=float))
         if not self.designs_geometry:
-            return ca.DM(tail)
-        entries = [ca.MX(v) for v in tail]
+            return tail
+        entries = [ca.MX(tail[i]) for i in range(tail.shape[0])]
         start = lay.n_leg_params
         for j in range(len(self.legs)):
             if not any((j, q) in self._geo for q in GEOMETRY_QUANTITIES):

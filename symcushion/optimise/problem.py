@@ -154,6 +154,14 @@ class DesignProblem(_DesignSpace, _Constraints, _GradientCheck):
         tail = self._full_p_tail(ca.DM(np.asarray(theta, dtype=float)), model)
         return np.concatenate([self.p_of(theta), np.asarray(ca.evalf(tail), dtype=float).ravel()])
 
+    def scenario_state(self, k: int, theta) -> np.ndarray:
+        """The initial state of scenario ``k`` at design θ: its ``x0`` with the feet at the
+        rest poses of θ's geometry and the body placed at the scenario's clearance."""
+        s = self.scenarios[k]
+        theta = ca.DM(np.asarray(theta, dtype=float))
+        x0 = self._placed_state(s.x0, theta, s.scene, s.clearance, _up(s.scene.gravity))
+        return np.asarray(ca.evalf(x0), dtype=float).ravel()
+
     # -- evaluation -------------------------------------------------------------
     @property
     def n_variables(self) -> int:

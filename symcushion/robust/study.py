@@ -52,6 +52,8 @@ class RobustStudy:
         ``n`` and ``seed`` are those of the verification.
     variables : list of DesignVariable
     shapes : list of CurveShape
+    geometry : list of GeometryVariable
+    practical : PracticalLimits, optional
     pool, pool_seed : int
         Size and seed of the sampled pool the scenarios come from.
     scenarios : int
@@ -66,6 +68,8 @@ class RobustStudy:
     envelope: EnvelopeStudy
     variables: list
     shapes: list = field(default_factory=list)
+    geometry: list = field(default_factory=list)
+    practical: object = None
     pool: int = DEFAULT_POOL
     pool_seed: int = DEFAULT_POOL_SEED
     scenarios: int = DEFAULT_SCENARIOS
@@ -90,12 +94,14 @@ def robust_study_from_dict(data: dict, source: str = "<dict>") -> RobustStudy:
         raise ValueError(f"{source}: no `[design]` table; give `[[design.variables]]` (the "
                          "tunable curve parameters to design, docs/optimise.md).")
     envelope = envelope_from_dict(data, source)
-    variables, shapes = read_design_table(_Fields(design, "design", source))
+    variables, shapes, geometry, practical = read_design_table(_Fields(design, "design",
+                                                                       source))
     if not isinstance(robust, dict):
         raise ValueError(f"{source}: `robust` must be a table, got {robust!r}.")
     rb = _Fields(robust, "robust", source)
     out = RobustStudy(
         name=envelope.name, envelope=envelope, variables=variables, shapes=shapes,
+        geometry=geometry, practical=practical,
         pool=rb.get("pool", DEFAULT_POOL, kind="int"),
         pool_seed=rb.get("seed", DEFAULT_POOL_SEED, kind="int"),
         scenarios=rb.get("scenarios", DEFAULT_SCENARIOS, kind="int"),
@@ -186,7 +192,8 @@ def run_robust_study(study: RobustStudy, out_dir=None, *, threads: int | None = 
     problem = EnvelopeDesign(study.envelope, conditions, study.variables, names=names,
                              horizon=study.horizon, risk=study.risk, alpha=study.alpha,
                              saturation=study.saturation, sharpness=study.sharpness,
-                             shapes=study.shapes, threads=threads, client=client,
+                             shapes=study.shapes, geometry=study.geometry,
+                             practical=study.practical, threads=threads, client=client,
                              cache_dir=cache_dir, progress=progress)
     seconds["build"] = time.perf_counter() - t0
     gradient = {}
@@ -209,7 +216,15 @@ def run_robust_study(study: RobustStudy, out_dir=None, *, threads: int | None = 
         say(f"{study.name}: 4/4 verification: {study.envelope.n:,} fresh touchdowns (seed "
             f"{study.envelope.seed}), starting design and optimum")
         before = run_envelope(study.envelope, **env)
-        after = run_envelope(study.envelope, design=result.design, **env)
+        if problem.designs_geometry:
+            # the optimum's geometry is a scene of its own (its legs rebuilt)
+            curves = {k: v for k, v, is_curve in zip(result.var_names, result.theta,
+                                                    problem._is_curve) if is_curve}
+            after = run_envelope(study.envelope.with_(
+                scene=problem.scene_at(result.theta, study.envelope.scene)), design=curves,
+                **env)
+        else:
+            after = run_envelope(study.envelope, design=result.design, **env)
         seconds["verify"] = time.perf_counter() - t0
         for label, r in (("before", before), ("after", after)):
             ps = r.p_stable()
