@@ -134,6 +134,19 @@ def robust_study_from_dict(data: dict, source: str = "<dict>") -> RobustStudy:
     return out
 
 
+def _write_geometry(result, out_dir):
+    """``geometry.json``: the legs' geometry at the start and the optimum, and the
+    practical-limit rows' values (docs/optimise.md, "Geometry as design variables")."""
+    import json
+    from pathlib import Path
+
+    from ..results import atomic_write_text, jsonable
+    path = Path(out_dir) / "geometry.json"
+    atomic_write_text(path, json.dumps(jsonable(result.geometry), indent=2,
+                                       ensure_ascii=False) + "\n")
+    return path
+
+
 def load_robust_study(path) -> RobustStudy:
     """Load a design-for-the-envelope study file (format: docs/optimise.md)."""
     return robust_study_from_dict(read_toml(path, "design study"), str(path))
@@ -235,5 +248,7 @@ def run_robust_study(study: RobustStudy, out_dir=None, *, threads: int | None = 
     if out_dir is not None:
         from .report import write_report  # matplotlib only when writing
         run["files"] = write_report(run, out_dir)
+        if result.geometry:
+            run["files"]["geometry"] = _write_geometry(result, out_dir)
     return run
 
