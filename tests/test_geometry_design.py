@@ -233,3 +233,18 @@ def test_envelope_gradient_with_geometry_at_the_start_and_after_a_short_solve(en
         assert check["relative"] < 1e-6, check
     assert result.geometry["end"]["leg0"]["hinge_radius"] > 0
     assert {r["kind"] for r in result.geometry["practical"]} == {"footprint", "ground_clearance"}
+
+
+def test_per_leg_geometry_variables_and_the_study_file_fields():
+    pb = lander(geometry=[dict(quantity="length", lower=0.6, upper=1.0, shared=False,
+                               legs=[0, 2]),
+                          dict(quantity="splay", lower_deg=10.0, upper_deg=30.0)],
+                practical=None)
+    assert pb.var_names[-3:] == ["leg0.length", "leg2.length", "splay"]
+    assert pb.upper[-1] == pytest.approx(math.radians(30.0), abs=1e-15)
+    theta = pb.initial.copy()
+    theta[-3] = 0.7
+    assert [pb.leg_geometry(theta, j)["length"] for j in range(4)] == [0.7, 0.8, 0.8, 0.8]
+    with pytest.raises(ValueError, match=r"missing field `design.geometry\[0\].lower`"):
+        lander(geometry=[dict(quantity="splay", lower_degs=10.0, upper_deg=30.0)],
+               practical=None)
