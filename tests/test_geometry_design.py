@@ -248,3 +248,31 @@ def test_per_leg_geometry_variables_and_the_study_file_fields():
     with pytest.raises(ValueError, match=r"missing field `design.geometry\[0\].lower`"):
         lander(geometry=[dict(quantity="splay", lower_degs=10.0, upper_deg=30.0)],
                practical=None)
+
+
+@needs_cc
+def test_compiled_rollouts_with_a_geometry_variable_equal_the_vm(tmp_path):
+    """The compiled design path (``compile = true``) takes the geometry's x0 and p
+    expressions with the rollouts: f, g and the Jacobian equal the VM's."""
+    import casadi as ca
+    from symcushion.compiled_nlp import COMPILE_FLAGS
+
+    def absorber():
+        data = read_toml("studies/absorber_1d.toml", "study")
+        data["scene"]["duration"] = 0.05
+        data["design"]["geometry"] = [dict(quantity="length", lower=0.3, upper=0.5)]
+        return study_from_dict(data, "absorber.toml").problem
+
+    problem, vm = absorber(), absorber()
+    built = problem.use_compiled(tmp_path, cflags=("-O0",) + COMPILE_FLAGS[1:])
+    theta = problem.initial.copy()
+    theta[-1] = 0.49                                          # the foot 1 cm above the ground
+    x = problem.scaled(theta)
+    f_c, g_c = problem.fg(x)
+    f_v, g_v = vm.fg(x)
+    assert abs(f_c - f_v) <= 1e-10 * abs(f_v)
+    assert np.linalg.norm(g_c - g_v) <= 1e-10 * np.linalg.norm(g_v)
+    jac = [np.asarray(ca.Function("j", [nlp["x"]], [ca.jacobian(nlp["g"], nlp["x"])])(x))
+           for nlp in (built.nlp, vm.nlp)]
+    assert np.linalg.norm(jac[0][:, -2]) > 0                  # the length's column
+    assert np.linalg.norm(jac[0] - jac[1]) <= 1e-10 * np.linalg.norm(jac[1])

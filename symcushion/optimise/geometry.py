@@ -120,15 +120,17 @@ class PracticalLimits:
         return any(v is not None for v in self.__dict__.values())
 
 
-def _leg_frame(leg, j: int, need_splay: bool) -> dict:
+def _leg_frame(leg, j: int, need_radial: bool, need_splay: bool) -> dict:
     """Radial frame and start values of one hinged strut (see the module docstring)."""
     z = np.array([0.0, 0.0, 1.0])
     radial = np.array([leg.hinge[0], leg.hinge[1], 0.0])
     rho = float(np.linalg.norm(radial))
-    if rho == 0.0:
+    if rho == 0.0 and need_radial:
         raise ValueError(f"leg {j}: its hinge is on the body's vertical axis, so it has no "
-                         "radial direction; move the hinge off the axis to design its geometry.")
-    u = radial / rho
+                         "radial direction; move the hinge off the axis to design its hinge "
+                         "radius or splay.")
+    # a hinge on the axis has no radial plane; any one serves its height and length
+    u = radial / rho if rho > 0 else np.array([1.0, 0.0, 0.0])
     t = np.cross(z, u)
     e0 = np.asarray(leg.e0, dtype=float)
     if need_splay and abs(float(e0 @ t)) > _PLANE_TOL:
@@ -174,8 +176,10 @@ class _GeometryDesign:
         if not all(isinstance(leg, HingedStrut) for leg in legs):
             raise ValueError("geometry variables and practical limits need hinged struts "
                              "(scheme = \"strut\"); the scene has other legs.")
-        need_splay = any(getattr(s, "quantity", None) == "splay" for s in specs)
-        self._frames = [_leg_frame(leg, j, need_splay) for j, leg in enumerate(legs)]
+        quantities = {getattr(s, "quantity", None) for s in specs}
+        need_radial = bool(quantities & {"hinge_radius", "splay"})
+        self._frames = [_leg_frame(leg, j, need_radial, "splay" in quantities)
+                        for j, leg in enumerate(legs)]
         names, lower, upper, scale, start = [], [], [], [], []
         for i, spec in enumerate(specs):
             if not isinstance(spec, GeometryVariable):
