@@ -14,6 +14,7 @@ import numpy as np
 
 from ..layout import state_layout
 from ..measures import measures_function
+from .geometry import PRACTICAL_KINDS
 from .spec import _Block, _up, VIOLATION_TOL
 
 __all__: list = []
@@ -40,8 +41,8 @@ class _Constraints:
 
         def add(expr, kind, scale, lower, upper, unit, scenario=None, leg=None, dt=None, label=""):
             nonlocal n_rows
-            expr = ca.vec(expr)
-            if kind == "shape" and not ca.depends_on(expr, w):
+            expr = ca.vec(expr if isinstance(expr, ca.MX) else ca.MX(expr))
+            if kind in ("shape",) + PRACTICAL_KINDS and not ca.depends_on(expr, w):
                 # fixed by parameters that are not designed: check once, add no row
                 value = float(ca.Function("fixed", [w], [expr])(np.zeros(nv)))
                 if not lower - VIOLATION_TOL <= value / scale <= upper + VIOLATION_TOL:
@@ -55,11 +56,12 @@ class _Constraints:
             n_rows += expr.numel()
 
         # the initial design's peak scales the epigraph variable
-        peak_exprs, stroke_exprs = self._scenario_measures(p)
+        peak_exprs, stroke_exprs = self._scenario_measures(p, theta)
         ref = self._objective_scale(w, peak_exprs, stroke_exprs)
         self._add_limit_rows(add, t, ref)
 
         self._add_shape_constraints(theta, add)
+        self._add_practical_rows(theta, add, self.limits.stroke)
         g = ca.vertcat(*rows)
         self.blocks = blocks
         self._w, self._t = w, t
@@ -95,7 +97,7 @@ class _Constraints:
         built = self.use_compiled(cache_dir, progress=progress)
         return {f"compiled_{k}_seconds": v for k, v in built.seconds.items()}
 
-    def _scenario_measures(self, p):
+    def _scenario_measures(self, p, theta):
         """Per scenario, the measures of every rollout step as expressions of the design.
 
         Sets ``self._measure`` (one dict per scenario) and returns the expressions of
@@ -107,9 +109,11 @@ class _Constraints:
         for s, model in zip(self.scenarios, self.models):
             scene = s.scene
             up = _up(scene.gravity)
-            # the design rows of p, then this scenario's own μ, gravity and body
-            p_full = ca.vertcat(p, ca.DM(model.default_p[model.params.n_leg_params:]))
-            X, Y = model.rollout(scene.steps)(ca.DM(s.x0), p_full, scene.dt)
+            # the design rows of p, then this scenario's own μ, gravity and body, and the
+            # legs' geometry (expressions of θ where it is designed)
+            p_full = ca.vertcat(p, self._full_p_tail(theta, model))
+            x0 = self._placed_state(s.x0, theta, scene, s.clearance, up)
+            X, Y = model.rollout(scene.steps)(x0, p_full, scene.dt)
             self._rollout_calls.append((X, Y))
             per_step = measures_function(scene).map(scene.steps).call(
                 dict(x=X, y=Y, p=ca.repmat(p_full, 1, scene.steps)))

@@ -26,6 +26,7 @@ from .gradient import _GradientCheck
 from .space import _DesignSpace
 from .progress import _IterationCallback
 from .result import DesignResult
+from .geometry import PRACTICAL_KINDS
 from .spec import (_Block, _leg_param_names, _up, CurveShape, DesignVariable, Evaluation,
                    Limits, OBJECTIVES, Scenario, VIOLATION_TOL)
 
@@ -78,6 +79,11 @@ class DesignProblem(_DesignSpace, _Constraints, _GradientCheck):
     shapes : sequence of CurveShape, optional
         Default: monotone and unloading-below for every element with a design
         variable. An element not listed gets the default.
+    geometry : sequence of GeometryVariable, optional
+        The legs' geometry as design variables, after the curves' in θ
+        (docs/optimise.md, "Geometry as design variables").
+    practical : PracticalLimits, optional
+        Footprint radius, leg mass proxy and ground clearance rows.
 
     Notes
     -----
@@ -89,7 +95,7 @@ class DesignProblem(_DesignSpace, _Constraints, _GradientCheck):
 
     def __init__(self, scenarios: Sequence[Scenario], variables: Sequence[DesignVariable],
                  limits: Limits | None = None, objective: str = "peak_deceleration",
-                 shapes: Sequence[CurveShape] = ()):
+                 shapes: Sequence[CurveShape] = (), geometry=(), practical=None):
         started = time.perf_counter()
         self.scenarios = list(scenarios)
         if not self.scenarios or not all(isinstance(s, Scenario) for s in self.scenarios):
@@ -126,7 +132,8 @@ class DesignProblem(_DesignSpace, _Constraints, _GradientCheck):
         self.legs = self.scenarios[0].scene.legs
         self.p_default = np.concatenate([leg.param_values for leg in self.legs]) \
             if self.param_names else np.zeros(0)
-        self._resolve_variables(list(variables))
+        self._resolve_variables(list(variables), list(geometry))
+        self._resolve_geometry(list(geometry), practical, self.models[0].params)
         self._shapes = self._resolve_shapes(list(shapes))
         self._build()
         self.build_seconds = time.perf_counter() - started
@@ -145,7 +152,16 @@ class DesignProblem(_DesignSpace, _Constraints, _GradientCheck):
         """The ``p`` of scenario ``k``'s ``touchdown_step`` at design θ: the legs' curve
         parameters (:meth:`p_of`), then that scenario's own μ, gravity, mass and inertia."""
         model = self.models[k]
-        return np.concatenate([self.p_of(theta), model.default_p[model.params.n_leg_params:]])
+        tail = self._full_p_tail(ca.DM(np.asarray(theta, dtype=float)), model)
+        return np.concatenate([self.p_of(theta), np.asarray(ca.evalf(tail), dtype=float).ravel()])
+
+    def scenario_state(self, k: int, theta) -> np.ndarray:
+        """The initial state of scenario ``k`` at design θ: its ``x0`` with the feet at the
+        rest poses of θ's geometry and the body placed at the scenario's clearance."""
+        s = self.scenarios[k]
+        theta = ca.DM(np.asarray(theta, dtype=float))
+        x0 = self._placed_state(s.x0, theta, s.scene, s.clearance, _up(s.scene.gravity))
+        return np.asarray(ca.evalf(x0), dtype=float).ravel()
 
     # -- evaluation -------------------------------------------------------------
     @property
@@ -263,6 +279,11 @@ class DesignProblem(_DesignSpace, _Constraints, _GradientCheck):
                     f"m/s outside [{lo:.4g}, {hi:.4g}] m/s")
         if b.kind == "shape":
             return f"{where}: shape constraint violated: {b.label} (value {phys:.4g} {b.unit})"
+        if b.kind in PRACTICAL_KINDS:
+            side = "<" if b.lower == -math.inf else ">"
+            bound = (b.upper if side == "<" else b.lower) * b.scale
+            return (f"{where}{leg}: practical limit `{b.kind}` violated: {b.label} = "
+                    f"{phys:.4g} {b.unit}, must be {side}= {bound:.4g} {b.unit}")
         if b.kind == "epigraph":
             return f"{where}{leg}: epigraph row violated{when} by {value:.3g} (relative)"
         limit = b.upper * b.scale
@@ -286,14 +307,21 @@ class DesignProblem(_DesignSpace, _Constraints, _GradientCheck):
         """
         theta = self.initial if theta is None else np.asarray(theta, dtype=float)
 
+        # only the curves are scaled: the geometry (hinges, lengths) stays where it starts
+        curve = getattr(self, "_is_curve", np.ones(theta.size, dtype=bool))
+
+        def scaled(c):
+            return np.where(curve, c * theta, theta)
+
         def ok(c):
-            return not self._limit_violations(c * theta)
+            return not self._limit_violations(scaled(c))
 
         if ok(1.0):
             return theta, 1.0
         with np.errstate(divide="ignore", invalid="ignore"):
             room = np.where(theta > 0, self.upper / theta,
                             np.where(theta < 0, self.lower / theta, np.inf))
+        room = np.where(curve, room, np.inf)
         c_max = float(np.min(room))
         c_hi = 1.0
         while not ok(c_hi):
@@ -308,11 +336,12 @@ class DesignProblem(_DesignSpace, _Constraints, _GradientCheck):
         c = c if ok(c) and c <= c_max else c_hi
         if progress is True:
             print(f"  feasible start: design scaled by c = {c:.4g}", flush=True)
-        return c * theta, c
+        return scaled(c), c
 
     def _limit_violations(self, theta):
-        """Violations of the limits (not of shape constraints) at θ."""
-        return [v for v in self.evaluate(theta).violations if "shape constraint" not in v]
+        """Violations of the limits (not of shape constraints or practical limits) at θ."""
+        return [v for v in self.evaluate(theta).violations
+                if "shape constraint" not in v and "practical limit" not in v]
 
     def solve(self, ipopt: dict | None = None, progress: bool | Callable = False,
               theta0=None, feasible_start: bool = True, compiled: bool = False,

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..results import atomic_write_text, jsonable
+from .geometry import PRACTICAL_KINDS
 from .spec import Evaluation
 
 if TYPE_CHECKING:  # the problem module imports this one
@@ -111,7 +112,21 @@ class DesignResult:
             limits=pb.limits.__dict__,
             timings=self.timings,
             history=self.history,
+            **self._geometry(),
             **{k: v for k, v in self.meta.items() if k != "name"}))
+
+    def _geometry(self) -> dict:
+        """``geometry`` (the legs' geometry at the start and the optimum) and
+        ``practical`` (each practical-limit row's value there), when designed or limited."""
+        pb = self.problem
+        if getattr(pb, "_frames", None) is None:
+            return {}
+        _, g = pb.fg(pb.scaled(self.theta, t=self.evaluation.objective))
+        rows = [dict(kind=b.kind, leg=b.leg, label=b.label, unit=b.unit,
+                     values=(g[b.start:b.stop] * b.scale).tolist())
+                for b in pb.blocks if b.kind in PRACTICAL_KINDS]
+        return dict(geometry=dict(start=pb.geometry_report(self.theta0),
+                                  end=pb.geometry_report(self.theta)), practical=rows)
 
     def save_json(self, path):
         """Write :meth:`to_dict` as JSON (NaN and inf written as null)."""

@@ -1,7 +1,8 @@
 """The design space: named variables over the legs' curve parameters, and curve shapes.
 
 Owns resolving design variables from parameter-name patterns (shared by
-symmetric legs, bounds, scales, the map p = p_fixed + M θ), the tuned curves
+symmetric legs, bounds, scales, the map p = p_fixed + M θ of the curves'
+parameters; geometry variables, nonlinear in θ, come from :mod:`.geometry`), the tuned curves
 and their shape rows (monotone loading, onset slope, unloading below
 loading), and the curves' values at a design. A mixin of every design
 problem (:class:`~symcushion.optimise.DesignProblem` and the envelope
@@ -19,6 +20,7 @@ import casadi as ca
 import numpy as np
 
 from ..characteristics import Curve, PiecewiseLinear
+from .geometry import _GeometryDesign
 from .spec import _real, CurveShape, DesignVariable
 
 __all__ = ["ONSET_SLOPE_FRACTION", "SHAPE_GRID"]
@@ -40,13 +42,21 @@ SHAPE_GRID = 8
 _BRANCH_SELECT = 50.0
 
 
-class _DesignSpace:
-    """Design variables and curve shapes of a design problem (a mixin)."""
+class _DesignSpace(_GeometryDesign):
+    """Design variables, curve shapes and (through :class:`_GeometryDesign`) the legs'
+    geometry of a design problem (a mixin)."""
 
-    def _resolve_variables(self, specs):
-        if not specs:
+    def _resolve_variables(self, specs, geometry=()):
+        """Curve variables from ``specs``; ``geometry`` (GeometryVariable) may stand alone."""
+        if not specs and not geometry:
             raise ValueError("no design variables; give at least one (e.g. names = \"S.f*\") "
-                             "and mark the curve `tunable = true`.")
+                             "and mark the curve `tunable = true`, or a geometry variable.")
+        if not specs:
+            self.var_names, self.var_index = [], []
+            self.lower = self.upper = self.scale = self.initial = np.zeros(0)
+            self._map = np.zeros((len(self.param_names), 0))
+            self.p_fixed = np.asarray(self.p_default, dtype=float)
+            return
         if not self.param_names:
             raise ValueError("the legs have no tunable parameters; mark a curve "
                              "`tunable = true` to make its parameters design variables.")

@@ -37,11 +37,17 @@ class Scenario:
         Scenarios of one problem share the scene's legs (same ``param_names``).
     x0 : ndarray, shape (nx,), optional
         Initial state; default :func:`symcushion.simulate.initial_state`.
+    clearance : float, optional
+        Height of the lowest foot above the obstacle at which ``x0`` was
+        placed (m). With geometry variables the body is placed again at this
+        clearance for every design (docs/optimise.md, "Geometry"); None keeps
+        the body where ``x0`` has it and only moves the feet to their rest poses.
     """
 
     name: str
     scene: Scene
     x0: np.ndarray | None = None
+    clearance: float | None = None
 
 
 @dataclass

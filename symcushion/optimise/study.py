@@ -20,6 +20,7 @@ from ..quaternion import quat_to_rot_np
 from ..obstacles import closest_obstacle
 from ..scene import Scene, _Table, read_toml, scene_from_dict
 from ..touchdown import initial_state
+from .geometry import GEOMETRY_QUANTITIES, GeometryVariable, PracticalLimits
 from .problem import DesignProblem
 from .result import DesignResult
 from .spec import _up, CurveShape, DesignVariable, Limits, OBJECTIVES, Scenario
@@ -133,7 +134,7 @@ def study_from_dict(data: dict, source: str = "<dict>", base_dir=".") -> Study:
     if not scenarios:
         scenarios = [Scenario("nominal", base)]
 
-    variables, shapes = read_design_table(top.get("design", kind="table"))
+    variables, shapes, geometry, practical = read_design_table(top.get("design", kind="table"))
 
     lim = top.get("limits", kind="table") if top.has("limits") else _Fields({}, "limits", source)
     top.used.add("limits")
@@ -170,7 +171,8 @@ def study_from_dict(data: dict, source: str = "<dict>", base_dir=".") -> Study:
     top.used.add("solver")
     top.finish()
     try:
-        problem = DesignProblem(scenarios, variables, limits, objective, shapes)
+        problem = DesignProblem(scenarios, variables, limits, objective, shapes, geometry,
+                                practical)
     except (ValueError, TypeError) as exc:
         raise ValueError(f"{source}: {exc}") from None
     return Study(name=name, problem=problem, ipopt=ipopt, source=source, description=description,
@@ -178,15 +180,18 @@ def study_from_dict(data: dict, source: str = "<dict>", base_dir=".") -> Study:
 
 
 def read_design_table(dz) -> tuple:
-    """``[[design.variables]]`` and ``[[design.shape]]`` of a study's ``[design]`` table.
+    """``[[design.variables]]``, ``[[design.shape]]``, ``[[design.geometry]]`` and
+    ``[design.limits]`` of a study's ``[design]`` table.
 
     Returns
     -------
     variables : list of DesignVariable
     shapes : list of CurveShape
+    geometry : list of GeometryVariable
+    practical : PracticalLimits
     """
     variables = []
-    for t in dz.get("variables", kind="tables"):
+    for t in (dz.get("variables", kind="tables") if dz.has("variables") else []):
         variables.append(DesignVariable(
             names=t.get("names", kind="strings"), lower=t.get("lower", -math.inf),
             upper=t.get("upper", math.inf), shared=t.get("shared", True, kind="bool"),
@@ -202,8 +207,43 @@ def read_design_table(dz) -> tuple:
             onset_slope=t.get("onset_slope", None, nonnegative=True)))
         t.finish()
     dz.used.add("shape")
+    geometry = [_geometry_variable(t) for t in
+                (dz.get("geometry", kind="tables") if dz.has("geometry") else [])]
+    dz.used.add("geometry")
+    practical = PracticalLimits()
+    if dz.has("limits"):
+        lt = dz.get("limits", kind="table")
+        practical = PracticalLimits(
+            footprint_radius=lt.get("footprint_radius", None, positive=True),
+            leg_mass=lt.get("leg_mass", None, positive=True),
+            ground_clearance=lt.get("ground_clearance", None, positive=True))
+        lt.finish()
+    dz.used.add("limits")
     dz.finish()
-    return variables, shapes
+    if not variables and not geometry:
+        raise dz.error("variables", None, "at least one `[[design.variables]]` (curve "
+                       "parameters) or `[[design.geometry]]` table")
+    return variables, shapes, geometry, practical
+
+
+def _geometry_variable(t) -> GeometryVariable:
+    """One ``[[design.geometry]]`` table: the splay's bounds in radians or degrees
+    (``lower_deg``), the others' in metres (``lower``, ``upper``)."""
+    quantity = t.get("quantity", kind="string", choices=tuple(GEOMETRY_QUANTITIES))
+    if quantity == "splay":        # radians, or degrees as `lower_deg` (docs/scenes.md, "Angles")
+        lower, upper = t.angle("lower"), t.angle("upper")
+        scale = t.angle("scale", None, positive=True)
+    else:
+        lower, upper = t.get("lower"), t.get("upper")
+        scale = t.get("scale", None, positive=True)
+    legs = t.get("legs", None, kind="any")
+    if legs is not None and not (isinstance(legs, list) and all(
+            isinstance(j, int) and not isinstance(j, bool) for j in legs)):
+        raise t.error("legs", legs, "a list of leg indices, e.g. [0, 2]")
+    out = GeometryVariable(quantity, lower, upper, legs=legs,
+                           shared=t.get("shared", True, kind="bool"), scale=scale)
+    t.finish()
+    return out
 
 
 def _smooth_tunable(scene: Scene, kink_width, rate_width):
@@ -251,11 +291,13 @@ def _scenario(t: _Fields, base: Scene, scene_raw: dict, scene_source: str) -> Sc
         body = dataclasses.replace(base.body, **initial)
     except ValueError as exc:
         raise ValueError(f"{t.source}: `{t.path}`: {exc}") from None
+    clearance = None
     if t.has("clearance"):
-        body.position = _place(scene, body, t.get("clearance", nonnegative=True))
+        clearance = t.get("clearance", nonnegative=True)
+        body.position = _place(scene, body, clearance)
     t.finish()
     x0 = initial_state(scene.with_(body=body))
-    return Scenario(name, scene, x0)
+    return Scenario(name, scene, x0, clearance)
 
 
 def _place(scene: Scene, body, clearance: float) -> np.ndarray:

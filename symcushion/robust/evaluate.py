@@ -23,7 +23,7 @@ from ..codegen import compile_cached
 from ..compiled_nlp import COMPILE_FLAGS   # -O1: the design library's flags
 from .margins import margins_function
 
-__all__ = ["DEFAULT_CACHE", "MARGINS", "build_margins", "ScenarioRatios"]
+__all__ = ["DEFAULT_CACHE", "MARGINS", "build_margins", "design_margins", "ScenarioRatios"]
 
 #: Folder of the compiled margins libraries (git-ignored ``build/``).
 DEFAULT_CACHE = Path("build") / "robust"
@@ -31,9 +31,29 @@ DEFAULT_CACHE = Path("build") / "robust"
 MARGINS = "touchdown_margins"
 
 
+def design_margins(model, steps: int, limits: dict, design: np.ndarray, *, sharpness: float,
+                   reach: float = 0.0, design_map: ca.Function | None = None) -> ca.Function:
+    """``touchdown_margins(x0, p0, w, dt)`` of a design.
+
+    Without ``design_map`` the linear map p = p0 + design·w of
+    :func:`~symcushion.robust.margins.margins_function`. With it (a Function
+    ``(x0, p0, w) -> (x0_design, p_design)``: geometry variables, docs/optimise.md)
+    the margins of the state and parameters it returns; the same inputs and output.
+    """
+    if design_map is None:
+        return margins_function(model, steps, limits, sharpness=sharpness, design=design,
+                                reach=reach)
+    inner = margins_function(model, steps, limits, sharpness=sharpness, reach=reach)
+    x0, p0 = ca.MX.sym("x0", model.nx), ca.MX.sym("p0", model.np)
+    w, dt = ca.MX.sym("w", design.shape[1]), ca.MX.sym("dt")
+    x_design, p_design = design_map(x0, p0, w)
+    ratio = inner(x_design, p_design, ca.MX(0, 1), dt)
+    return ca.Function(MARGINS, [x0, p0, w, dt], [ratio], ["x0", "p0", "w", "dt"], ["ratio"])
+
+
 def build_margins(model, steps: int, limits: dict, design: np.ndarray, *, sharpness: float,
                   reach: float = 0.0, cache_dir=None, name: str = "scene",
-                  progress: bool = False) -> tuple:
+                  progress: bool = False, design_map: ca.Function | None = None) -> tuple:
     """Generate and compile ``touchdown_margins`` and its Jacobian in w; return the library.
 
     Parameters
@@ -51,6 +71,9 @@ def build_margins(model, steps: int, limits: dict, design: np.ndarray, *, sharpn
         Lever arm of the at-rest check (m).
     cache_dir : str or Path, optional
         Default :data:`DEFAULT_CACHE`.
+    design_map : casadi.Function, optional
+        ``(x0, p0, w) -> (x0_design, p_design)`` when the design is not linear
+        in w (:func:`design_margins`).
 
     Returns
     -------
@@ -59,7 +82,8 @@ def build_margins(model, steps: int, limits: dict, design: np.ndarray, *, sharpn
         C generation and gcc (0.0 when the cache held the build).
     """
     started = time.perf_counter()
-    f = margins_function(model, steps, limits, sharpness=sharpness, design=design, reach=reach)
+    f = design_margins(model, steps, limits, design, sharpness=sharpness, reach=reach,
+                       design_map=design_map)
     args = [ca.MX.sym(n, f.sparsity_in(i)) for i, n in enumerate(f.name_in())]
     ratio = f(*args)
     jac = ca.Function(MARGINS + "_jac", args, [ratio, ca.jacobian(ratio, args[2])],

@@ -43,8 +43,9 @@ from ..optimise.progress import _IterationCallback
 from ..optimise.space import _DesignSpace
 from ..optimise.spec import _Block, _leg_param_names, Limits, VIOLATION_TOL
 from ..touchdown import build_model
-from .evaluate import build_margins, ScenarioRatios
-from .margins import CHECKS, DEFAULT_SHARPNESS, margins_function
+from ..optimise.geometry import PRACTICAL_KINDS
+from .evaluate import build_margins, design_margins, ScenarioRatios
+from .margins import CHECKS, DEFAULT_SHARPNESS
 
 __all__ = ["RISKS", "DEFAULT_ALPHA", "DEFAULT_SATURATION", "DEFAULT_HORIZON", "saturate",
            "EnvelopeDesign", "RobustResult"]
@@ -118,6 +119,10 @@ class RobustResult:
         ``shapes``: shape rows with a non-zero multiplier.
     history : list of dict
     timings : dict
+    geometry : dict
+        With geometry variables or practical limits: ``start`` and ``end``, the
+        legs' geometry (:meth:`EnvelopeDesign.geometry_report`), and
+        ``practical``, each practical-limit row's value at the end.
     """
 
     theta: np.ndarray
@@ -133,6 +138,7 @@ class RobustResult:
     multipliers: dict = field(default_factory=dict)
     history: list = field(default_factory=list)
     timings: dict = field(default_factory=dict)
+    geometry: dict = field(default_factory=dict)
 
     @property
     def design(self) -> dict:
@@ -188,9 +194,9 @@ class EnvelopeDesign(_DesignSpace, _GradientCheck):
     def __init__(self, study: EnvelopeStudy, conditions: dict, variables, *, names=None,
                  horizon: float | None = DEFAULT_HORIZON, risk: str = "cvar",
                  alpha: float = DEFAULT_ALPHA, saturation: float = DEFAULT_SATURATION,
-                 sharpness: float = DEFAULT_SHARPNESS, shapes=(), threads: int | None = None,
-                 client=None, cache_dir=None, progress: bool = False,
-                 tip_energy: float | None = DEFAULT_TIP_ENERGY):
+                 sharpness: float = DEFAULT_SHARPNESS, shapes=(), geometry=(),
+                 practical=None, threads: int | None = None, client=None, cache_dir=None,
+                 progress: bool = False, tip_energy: float | None = DEFAULT_TIP_ENERGY):
         started = time.perf_counter()
         if not isinstance(study, EnvelopeStudy):
             raise TypeError(f"`study` must be an EnvelopeStudy, got {type(study).__name__}.")
@@ -219,7 +225,7 @@ class EnvelopeDesign(_DesignSpace, _GradientCheck):
         self.legs = scene.legs
         self.p_default = np.concatenate([leg.param_values for leg in self.legs]) \
             if self.param_names else np.zeros(0)
-        if not self.param_names:
+        if not self.param_names and not geometry:
             raise ValueError("the study's legs have no tunable parameters; mark the curves to "
                              "design `tunable = true` (docs/optimise.md).")
         lim = study.limits
@@ -233,17 +239,19 @@ class EnvelopeDesign(_DesignSpace, _GradientCheck):
                             gamma=lim.gamma, deceleration=lim.deceleration,
                             rebound=lim.rebound_speed, moving=lim.rest_speed)
         self.checks = [c for c in CHECKS if self._limits[c] is not None]
-        self._resolve_variables(list(variables))
+        self._resolve_variables(list(variables), list(geometry))
+        self._resolve_geometry(list(geometry), practical, model.params)
         self._shapes = self._resolve_shapes(list(shapes))
         self._set_scenarios(conditions, names)
         nv, n_leg = len(self.var_names), len(self.param_names)
         design = np.zeros((model.np, nv))
         design[:n_leg] = self._map * self.scale          # p = p0 + design·w, w = θ/scale
         self._design, self._sharpness = design, sharpness
+        self._design_map = self._geometry_map(design) if self.designs_geometry else None
         self.library, compile_seconds = build_margins(
             model, self.steps, self._limits, design, sharpness=sharpness, reach=reach(scene),
             cache_dir=cache_dir,
-            name=f"{study.name}-{self.steps}", progress=progress)
+            name=f"{study.name}-{self.steps}", progress=progress, design_map=self._design_map)
         self._ratios = ScenarioRatios(self.library, self.x0, self.p0, scene.dt, threads, client)
         self.threads = threads
         self._build()
@@ -269,6 +277,21 @@ class EnvelopeDesign(_DesignSpace, _GradientCheck):
         p[:len(self.param_names)] = self.p_fixed[:, None]     # designed entries come from w
         self.x0, self.p0 = x0, p
 
+    def _geometry_map(self, design) -> ca.Function:
+        """``(x0, p0, w) -> (x0, p)`` of a design with geometry variables: the curves'
+        entries p0 + design·w, the legs' geometry blocks of θ = w·scale, and each case's
+        body moved so that its lowest foot keeps the envelope's clearance."""
+        model = self.model
+        x0, p0 = ca.MX.sym("x0", model.nx), ca.MX.sym("p0", model.np)
+        w = ca.MX.sym("w", design.shape[1])
+        theta = w * ca.DM(self.scale)
+        n = model.params.n_leg_params
+        p = p0 + ca.DM(design) @ w
+        p = ca.vertcat(p[:n], self._full_p_tail(theta, model, tail=p[n:]))
+        return ca.Function("design_map", [x0, p0, w],
+                           [self._placed_state_on_ground(x0, theta), p],
+                           ["x0", "p0", "w"], ["x0_design", "p_design"])
+
     def _build(self):
         nv, S, C = len(self.var_names), len(self.names), len(self.checks)
         w = ca.MX.sym("w", nv)
@@ -281,8 +304,8 @@ class EnvelopeDesign(_DesignSpace, _GradientCheck):
 
         def add(expr, kind, scale, lower, upper, unit, scenario=None, leg=None, dt=None,
                 label=""):
-            expr = ca.vec(expr)
-            if kind == "shape" and not ca.depends_on(expr, w):
+            expr = ca.vec(expr if isinstance(expr, ca.MX) else ca.MX(expr))
+            if kind in ("shape",) + PRACTICAL_KINDS and not ca.depends_on(expr, w):
                 value = float(ca.Function("fixed", [w], [expr])(np.zeros(nv)))
                 if not lower - VIOLATION_TOL <= value / scale <= upper + VIOLATION_TOL:
                     raise ValueError(f"shape constraint `{label}` fails ({value:.4g} {unit}) "
@@ -298,6 +321,7 @@ class EnvelopeDesign(_DesignSpace, _GradientCheck):
             add(top - loss[:, s], "risk", 1.0, 0.0, math.inf, "", name,
                 label="η + u_s ≥ loss of " + ", ".join(self.checks))
         self._add_shape_constraints(w * ca.DM(self.scale), add)
+        self._add_practical_rows(w * ca.DM(self.scale), add, self.limits.stroke)
         f = eta + (ca.sum1(u) / ((1 - self.alpha) * S) if self.risk == "cvar" else 0)
         self.blocks, self._w, self._C = blocks, w, C
         x = ca.vertcat(w, eta, u)
@@ -325,8 +349,9 @@ class EnvelopeDesign(_DesignSpace, _GradientCheck):
         whole rollout per scenario on the VM, so much slower than :meth:`ratios`).
         """
         theta = self.initial if theta is None else np.asarray(theta, dtype=float)
-        f = margins_function(self.model, self.steps, self._limits, sharpness=self._sharpness,
-                             design=self._design, reach=reach(self.scene))
+        f = design_margins(self.model, self.steps, self._limits, self._design,
+                           sharpness=self._sharpness, reach=reach(self.scene),
+                           design_map=self._design_map)
         w = theta / self.scale
         return np.column_stack([np.asarray(f(self.x0[:, s], self.p0[:, s], w, self.scene.dt),
                                            dtype=float).ravel()
@@ -386,8 +411,9 @@ class EnvelopeDesign(_DesignSpace, _GradientCheck):
         R0 = self.ratios(start)
         best = dict(risk=self.risk_of(self.losses(start))[0], theta=start.copy(), iteration=-1)
 
+        # shape and practical-limit rows: a design must meet them to be kept
         shape_rows = np.concatenate([np.arange(b.start, b.stop) for b in self.blocks
-                                     if b.kind == "shape"] + [np.zeros(0, int)]).astype(int)
+                                     if b.kind != "risk"] + [np.zeros(0, int)]).astype(int)
 
         def on_iteration(x, f, g):
             theta = np.clip(x[:nv] * self.scale, self.lower, self.upper)
@@ -442,7 +468,19 @@ class EnvelopeDesign(_DesignSpace, _GradientCheck):
                          jacobian_calls=self._ratios.jacobian_calls[0],
                          jacobian_seconds=self._ratios.jacobian_calls[1],
                          threads=self.threads, design_taken=chosen,
-                         final_risk=final_risk))
+                         final_risk=final_risk),
+            geometry=self._geometry_summary(theta))
+
+    def _geometry_summary(self, theta) -> dict:
+        """The legs' geometry at the start and at θ, and the practical rows at θ."""
+        if self._frames is None:
+            return {}
+        g = self.fg(self.scaled(theta))[1]
+        rows = [dict(kind=b.kind, leg=b.leg, label=b.label,
+                     values=(g[b.start:b.stop] * b.scale).tolist(), unit=b.unit)
+                for b in self.blocks if b.kind in PRACTICAL_KINDS]
+        return dict(start=self.geometry_report(self.initial), end=self.geometry_report(theta),
+                    practical=rows)
 
     def _start(self, theta0) -> np.ndarray:
         """The design to start from: ``theta0`` checked against the bounds, or the study's."""

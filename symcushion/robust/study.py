@@ -62,6 +62,8 @@ class RobustStudy:
         ``n`` and ``seed`` are those of the verification.
     variables : list of DesignVariable
     shapes : list of CurveShape
+    geometry : list of GeometryVariable
+    practical : PracticalLimits, optional
     pool, pool_seed : int
         Size and seed of the sampled pool the scenarios come from.
     scenarios : int
@@ -83,6 +85,8 @@ class RobustStudy:
     envelope: EnvelopeStudy
     variables: list
     shapes: list = field(default_factory=list)
+    geometry: list = field(default_factory=list)
+    practical: object = None
     pool: int = DEFAULT_POOL
     pool_seed: int = DEFAULT_POOL_SEED
     scenarios: int = DEFAULT_SCENARIOS
@@ -111,12 +115,14 @@ def robust_study_from_dict(data: dict, source: str = "<dict>") -> RobustStudy:
         raise ValueError(f"{source}: no `[design]` table; give `[[design.variables]]` (the "
                          "tunable curve parameters to design, docs/optimise.md).")
     envelope = envelope_from_dict(data, source)
-    variables, shapes = read_design_table(_Fields(design, "design", source))
+    variables, shapes, geometry, practical = read_design_table(_Fields(design, "design",
+                                                                       source))
     if not isinstance(robust, dict):
         raise ValueError(f"{source}: `robust` must be a table, got {robust!r}.")
     rb = _Fields(robust, "robust", source)
     out = RobustStudy(
         name=envelope.name, envelope=envelope, variables=variables, shapes=shapes,
+        geometry=geometry, practical=practical,
         pool=rb.get("pool", DEFAULT_POOL, kind="int"),
         pool_seed=rb.get("seed", DEFAULT_POOL_SEED, kind="int"),
         scenarios=rb.get("scenarios", DEFAULT_SCENARIOS, kind="int"),
@@ -157,6 +163,19 @@ def robust_study_from_dict(data: dict, source: str = "<dict>") -> RobustStudy:
         raise ValueError(f"{source}: `robust.fail_share` must be in [0, 1], got "
                          f"{out.fail_share!r}.")
     return out
+
+
+def _write_geometry(result, out_dir):
+    """``geometry.json``: the legs' geometry at the start and the optimum, and the
+    practical-limit rows' values (docs/optimise.md, "Geometry as design variables")."""
+    import json
+    from pathlib import Path
+
+    from ..results import atomic_write_text, jsonable
+    path = Path(out_dir) / "geometry.json"
+    atomic_write_text(path, json.dumps(jsonable(result.geometry), indent=2,
+                                       ensure_ascii=False) + "\n")
+    return path
 
 
 def load_robust_study(path) -> RobustStudy:
@@ -210,13 +229,14 @@ def run_robust_study(study: RobustStudy, out_dir=None, *, threads: int | None = 
     looped = study.rounds > 1
     rounds, held_start = [], None
     if looped:
-        held_start = _held_out(study, None, env, say, "starting design")
+        held_start = _held_out(study, (study.envelope, None), env, say, "starting design")
     best = None
     for k in range(1, study.rounds + 1):
         if k > 1:
             t0 = time.perf_counter()
             say(f"{study.name}: round {k}: the pool again, on round {k - 1}'s design")
-            pool = run_envelope(pool_study, design=best["result"].design, **env)
+            at, curves = _at_design(pool_study, best["problem"], best["result"])
+            pool = run_envelope(at, design=curves, **env)
             seconds["pool"] += time.perf_counter() - t0
         theta0 = None if best is None else best["result"].theta
         t0 = time.perf_counter()
@@ -238,7 +258,8 @@ def run_robust_study(study: RobustStudy, out_dir=None, *, threads: int | None = 
         if not looped:
             best = this
             break
-        held = _held_out(study, result.design, env, say, f"round {k}'s design")
+        held = _held_out(study, _at_design(study.envelope, problem, result), env, say,
+                         f"round {k}'s design")
         rounds.append(_round_row(k, pool, idx, result, held))
         previous = held_start if best is None else best["held"]
         if held["p"] <= previous["p"]:
@@ -260,7 +281,8 @@ def run_robust_study(study: RobustStudy, out_dir=None, *, threads: int | None = 
         say(f"{study.name}: 4/4 verification: {study.envelope.n:,} fresh touchdowns (seed "
             f"{study.envelope.seed}), starting design and optimum")
         before = run_envelope(study.envelope, **env)
-        after = run_envelope(study.envelope, design=result.design, **env)
+        at, curves = _at_design(study.envelope, problem, result)
+        after = run_envelope(at, design=curves, **env)
         seconds["verify"] = time.perf_counter() - t0
         for label, r in (("before", before), ("after", after)):
             ps = r.p_stable()
@@ -272,8 +294,9 @@ def run_robust_study(study: RobustStudy, out_dir=None, *, threads: int | None = 
     if out_dir is not None:
         from .report import write_report  # matplotlib only when writing
         run["files"] = write_report(run, out_dir)
+        if result.geometry:
+            run["files"]["geometry"] = _write_geometry(result, out_dir)
     return run
-
 
 
 def _round_problem(study: RobustStudy, pool, solver: dict, say):
@@ -293,14 +316,30 @@ def _round_problem(study: RobustStudy, pool, solver: dict, say):
     problem = EnvelopeDesign(study.envelope, conditions, study.variables, names=names,
                              horizon=study.horizon, risk=study.risk, alpha=study.alpha,
                              saturation=study.saturation, sharpness=study.sharpness,
-                             tip_energy=study.tip_energy, shapes=study.shapes, **solver)
+                             tip_energy=study.tip_energy, shapes=study.shapes,
+                             geometry=study.geometry, practical=study.practical, **solver)
     return problem, idx
 
 
-def _held_out(study: RobustStudy, design, env: dict, say, label: str) -> dict:
-    """P(stable) of a design on the outer loop's held-out touchdowns, with its interval."""
-    run = run_envelope(study.envelope.with_(n=study.check, seed=study.check_seed),
-                       design=design, **env)
+def _at_design(envelope: EnvelopeStudy, problem, result) -> tuple:
+    """The envelope study and the curves' design that run a result's design θ.
+
+    A design of the curves only is the study's scene with the curves set
+    (``design``); a design of the geometry is a scene of its own, its legs
+    rebuilt at θ, with the curves' values as the design.
+    """
+    if not problem.designs_geometry:
+        return envelope, result.design
+    curves = {k: v for k, v, is_curve in zip(result.var_names, result.theta,
+                                            problem._is_curve) if is_curve}
+    return envelope.with_(scene=problem.scene_at(result.theta, envelope.scene)), curves
+
+
+def _held_out(study: RobustStudy, at: tuple, env: dict, say, label: str) -> dict:
+    """P(stable) of ``at`` = (envelope study, design) on the outer loop's held-out touchdowns."""
+    envelope, design = at
+    run = run_envelope(envelope.with_(n=study.check, seed=study.check_seed), design=design,
+                       **env)
     ps = run.p_stable()
     say(f"  held-out check ({study.check:,} touchdowns, seed {study.check_seed}), {label}: "
         f"P(stable) = {ps['p']:.3f} [{ps['low']:.3f}, {ps['high']:.3f}]")
