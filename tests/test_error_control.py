@@ -167,5 +167,12 @@ def test_cli_rtol_and_the_estimate_warning(tmp_path):
     assert "warning:" in coarse.stderr and "--dt" in coarse.stderr
     meta = json.loads((tmp_path / "fixed" / "lander_hop" / "run.json").read_text())
     assert meta["error_estimate"]["within_rtol"] is False
+    fine = _cli(str(scene), "--fine-estimate", "--duration", "0.1", "--out", "fine",
+                cwd=tmp_path)
+    assert fine.returncode == 0, fine.stderr
+    meta = json.loads((tmp_path / "fine" / "lander_hop" / "run.json").read_text())
+    assert meta["error_estimate"]["companion"] == "fine"
+    assert meta["error_estimate"]["companion_dt"] == pytest.approx(5e-4)
+    assert "the run's time" in fine.stdout
     bad = _cli(str(scene), "--rtol", "0", "--out", "bad", cwd=tmp_path)
     assert bad.returncode == 2 and "`rtol`" in bad.stderr
