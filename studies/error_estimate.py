@@ -10,13 +10,15 @@ companion is exactly the run at 2Δt or Δt/2), and compares them with the true
 error against a reference run at :data:`REFERENCE_DT`.
 
 Prints the table and a summary, writes ``figures/error_estimate.csv`` and
-``figures/error_estimate.png``. About eight minutes on two cores.
+``figures/error_estimate.png``. About eight minutes on two cores;
+``--from-csv`` prints and plots the CSV written before, without running.
 
-    PYTHONPATH=. python studies/error_estimate.py
+    PYTHONPATH=. python studies/error_estimate.py [--from-csv]
 """
 from __future__ import annotations
 
 import csv
+import sys
 import warnings
 from pathlib import Path
 
@@ -108,7 +110,7 @@ def figure(rows, path):
 
     from symcushion.results import replacing
 
-    fig, axes = plt.subplots(2, 2, figsize=(11, 9.5))
+    fig, axes = plt.subplots(2, 2, figsize=(11, 10.5))
     markers = dict(zip(dict.fromkeys(r["scene"] for r in rows), "osD^"))
     for i, (name, ratio) in enumerate(COMPANIONS.items()):
         groups = ((axes[i, 0], list(PEAKS), "peaks (relative error)", True),
@@ -131,20 +133,35 @@ def figure(rows, path):
                 ax.plot(lim, f * lim, "k:", lw=0.8)
             ax.set(xlim=lim, ylim=lim)
             ax.grid(True, which="major", alpha=0.3)
-    axes[0, 1].legend(fontsize=6, ncol=2, loc="upper left")
+    handles, labels = [], []
+    for ax in axes[0]:
+        h, lab = ax.get_legend_handles_labels()
+        handles, labels = handles + h, labels + lab
+    fig.legend(handles, labels, fontsize=7, ncol=4, loc="lower center")
     fig.suptitle(f"Richardson estimate (order 1) against the true error (reference at "
                  f"{REFERENCE_DT * 1e3:g} ms), Δt = 4 … 0.25 ms; dotted: factor {FACTOR:g}")
-    fig.tight_layout()
+    fig.tight_layout(rect=(0.0, 0.11, 1.0, 1.0))
     with replacing(path) as tmp:
         fig.savefig(tmp, dpi=110, format="png")
     plt.close(fig)
 
 
+def _read_csv(path) -> list:
+    """Rows of a CSV this study wrote, numbers as floats."""
+    with open(path, newline="") as fh:
+        return [{k: v if k in ("scene", "quantity") else float(v) for k, v in row.items()}
+                for row in csv.DictReader(fh)]
+
+
 def main():
     warnings.simplefilter("ignore")          # the coarse runs' own findings
-    rows = []
-    for path in SCENES:
-        rows += study_scene(path)
+    out = ROOT / "figures"
+    if "--from-csv" in sys.argv[1:]:
+        rows = _read_csv(out / "error_estimate.csv")
+    else:
+        rows = []
+        for path in SCENES:
+            rows += study_scene(path)
     print("| scene | Δt (ms) | quantity | true error | coarse (2Δt) | ratio | fine (Δt/2) | ratio |")
     print("|---|---:|---|---:|---:|---:|---:|---:|")
     for r in rows:
@@ -159,7 +176,6 @@ def main():
         print("  final state:", summary(rows, FINAL, name))
         print("  peaks without the tutorial lander:", summary(rows, PEAKS, name, others))
         print("  final state without it:", summary(rows, FINAL, name, others))
-    out = ROOT / "figures"
     with open(out / "error_estimate.csv", "w", newline="") as fh:
         writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
         writer.writeheader()
