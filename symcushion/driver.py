@@ -31,7 +31,8 @@ from .validation import real
 from .trajectory import Trajectory, _assemble, initial_output, trajectory_from
 
 __all__ = ["Trajectory", "trajectory_from", "initial_output", "simulate", "save", "RunWarning",
-           "BLOCK_STEPS", "KEEP_ROWS", "MAX_EVENTS", "MIN_STEP_FRACTION", "MAX_STEP_FRACTION"]
+           "BLOCK_STEPS", "KEEP_ROWS", "MAX_EVENTS", "MIN_STEP_FRACTION", "MAX_STEP_FRACTION",
+           "MAX_STEP_DT"]
 
 #: Steps per rollout call: building a 500-step mapaccum takes about 0.1 s and
 #: a block's rows take 0.4 MB (4 legs), so progress updates several times a
@@ -59,6 +60,13 @@ MIN_STEP_FRACTION = 2.0 ** -20
 #: free flight has no error to limit the step, and a touchdown must not be
 #: stepped over before the estimate can see it.
 MAX_STEP_FRACTION = 1e-2
+
+#: Largest step of an error-controlled run, in units of the scene's Δt: the
+#: scene's Δt is the time scale its author resolves the touchdowns with, and a
+#: step doubling pair of 20 ms in the lunar lander's flight lands its second
+#: touchdown 2 ms late (peak specific force 3e-3 off at rtol = 1e-3; a pair
+#: of at most 4Δt: 7e-4, docs/error-control.md).
+MAX_STEP_DT = 2.0
 
 class RunWarning(UserWarning):
     """A finding of a run monitor, raised through :mod:`warnings` by the API."""
@@ -488,7 +496,8 @@ def _run_controlled(model, x0, p, rtol, atol, recorder, stability=0.0) -> dict:
     pair = step_pair_function(model.step)
     norm = StepErrorNorm(scene, rtol, atol, x0)
     t_end = scene.duration
-    h_min, h_max = MIN_STEP_FRACTION * scene.dt, MAX_STEP_FRACTION * t_end
+    h_min = MIN_STEP_FRACTION * scene.dt
+    h_max = min(MAX_STEP_FRACTION * t_end, MAX_STEP_DT * scene.dt)
     h, t, x = scene.dt / 2, 0.0, np.asarray(x0, float)
     rows = _RowBuffer(recorder)
     steps = evaluations = rejected = floor = capped = 0
@@ -500,10 +509,11 @@ def _run_controlled(model, x0, p, rtol, atol, recorder, stability=0.0) -> dict:
             h_stable = stability * stable_dt(model, x, p)
             if h_stable < h:
                 h, capped = h_stable, capped + 1
-        x1, y1, x2, y2, x_big, y_big = pair(x, p, h)
+        # one conversion of each output to NumPy: the error norm, the rows and the
+        # next pair read them several times
+        x1, y1, x2, y2, x_big, y_big = (out.full().ravel() for out in pair(x, p, h))
         evaluations += 3
-        err = norm(np.asarray(x2, float).ravel(), np.asarray(y2, float).ravel(),
-                   np.asarray(x_big, float).ravel(), np.asarray(y_big, float).ravel(), h)
+        err = norm(x2, y2, x_big, y_big, h)
         if not np.isfinite(err):
             err = np.inf
         if err > 1 and h > h_min:
@@ -516,8 +526,8 @@ def _run_controlled(model, x0, p, rtol, atol, recorder, stability=0.0) -> dict:
         rows.add(t + h, x1, y1)
         t = t + 2 * h if h < remaining else t_end
         rows.add(t, x2, y2)
-        x = np.asarray(x2, float).ravel()
-        norm.accept(x, np.asarray(y2, float).ravel())
+        x = x2
+        norm.accept(x2, y2)
         steps += 2
         h = next_step(h, err)
     rows.flush()
