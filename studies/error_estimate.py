@@ -162,7 +162,8 @@ def main():
         rows = []
         for path in SCENES:
             rows += study_scene(path)
-    print("| scene | Δt (ms) | quantity | true error | coarse (2Δt) | ratio | fine (Δt/2) | ratio |")
+    print("| scene | Δt (ms) | quantity | true error | coarse (2Δt) | ratio | fine (Δt/2) | "
+          "ratio |")
     print("|---|---:|---|---:|---:|---:|---:|---:|")
     for r in rows:
         rel = r["reference"] if r["quantity"] in PEAKS else 1.0

@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .error_control import (COMPANIONS, DEFAULT_ESTIMATE_RTOL, PeakTracker, StepErrorNorm, ToleranceError,
-                            check_tolerances, estimate_report, next_step,
+from .error_control import (COMPANIONS, DEFAULT_ESTIMATE_RTOL, PeakTracker, StepErrorNorm,
+                            ToleranceError, check_tolerances, estimate_report, next_step,
                             step_pair_function)
 from .layout import MODES, output_layout, state_layout
 from .stability import STABILITY_SAFETY, stable_dt

@@ -29,10 +29,12 @@ import numpy as np
 from .layout import output_layout, state_layout
 from .validation import real
 
-__all__ = ["PEAKS", "ESTIMATE_ORDER", "DEFAULT_ESTIMATE_RTOL", "DT_SAFETY", "MAX_SCALED_ERROR", "COMPANIONS",
+__all__ = ["PEAKS", "ESTIMATE_ORDER", "DEFAULT_ESTIMATE_RTOL", "DT_SAFETY", "MAX_SCALED_ERROR",
+           "COMPANIONS",
            "CONTROL_ORDER",
            "CONTROL_SAFETY", "FAC_MIN", "FAC_MAX", "STROKE_FLOOR", "GRAVITY_FLOOR",
-           "PeakTracker", "parabola_peak", "SMOOTH_PEAK_MISFIT", "StepErrorNorm", "ToleranceError", "check_tolerances", "peak_floors",
+           "PeakTracker", "parabola_peak", "SMOOTH_PEAK_MISFIT", "TAIL_ROWS", "StepErrorNorm",
+           "ToleranceError", "check_tolerances", "peak_floors",
            "richardson", "estimate_report", "next_step", "step_pair_function"]
 
 #: The peak quantities of a run: name → (label, unit). Loads are what a leg
@@ -45,9 +47,11 @@ PEAKS = {
 
 #: Order p of Richardson's estimate. Measured on the four landers of
 #: docs/error-control.md, the peaks converge at orders 0.7–2.9 and the final
-#: state at 0.3–1.5 (first order where events dominate, docs/event-order.md);
-#: p = 1 is the safe choice: it overestimates a second-order error threefold
-#: and underestimates only errors that converge more slowly than Δt.
+#: state at 0.3–1.5 (first order where events dominate, docs/event-order.md),
+#: and the order observed from three runs is noise (−3.6 to 9.7); p = 1 is the
+#: safe choice. A scheme of another order changes a coarse companion's
+#: estimate by up to 1/(2^p − 1) and a fine one's by at most a factor 2
+#: (:func:`estimate_report`).
 ESTIMATE_ORDER = 1.0
 
 #: The companion runs of a fixed-Δt run's estimate: name → ratio of its step
@@ -290,7 +294,8 @@ def _final_parts(x, n_legs) -> dict:
 
 
 def estimate_report(peaks: dict, companion_peaks: dict, x_final, companion_final, *, dt: float,
-                    companion_dt: float, scene, rtol: float) -> tuple[dict, list]:
+                    companion_dt: float, scene, rtol: float,
+                    order: float = ESTIMATE_ORDER) -> tuple[dict, list]:
     """The error estimate of a fixed-Δt run from its companion run.
 
     Parameters
@@ -307,6 +312,12 @@ def estimate_report(peaks: dict, companion_peaks: dict, x_final, companion_final
     rtol : float
         Tolerance on the relative error of every peak, relative to the peak
         or its floor (:func:`peak_floors`), whichever is larger.
+    order : float
+        p, the order the errors are taken to converge at. A fine companion
+        scales the difference by 2^p / (2^p − 1), between 1 and 2 for any
+        p ≥ 1, a coarse one by 1 / (2^p − 1), from 1 down to 1/7 at p = 3: the
+        fine estimate barely depends on the scheme's order, the coarse one
+        does (docs/error-control.md).
 
     Returns
     -------
@@ -319,7 +330,7 @@ def estimate_report(peaks: dict, companion_peaks: dict, x_final, companion_final
         One line per peak whose estimate exceeds ``rtol``.
     """
     ratio = companion_dt / dt
-    report = {"method": "Richardson from a companion run", "order": ESTIMATE_ORDER, "dt": dt,
+    report = {"method": "Richardson from a companion run", "order": order, "dt": dt,
               "companion": "fine" if ratio < 1 else "coarse",
               "companion_dt": companion_dt, "rtol": rtol, "peaks": {}, "final_state": {}}
     worst = 0.0
@@ -327,7 +338,7 @@ def estimate_report(peaks: dict, companion_peaks: dict, x_final, companion_final
     floors = peak_floors(scene)
     for key, (label, unit) in PEAKS.items():
         value = peaks[key]
-        err = richardson(value, companion_peaks[key], ratio)
+        err = richardson(value, companion_peaks[key], ratio, order)
         rel = err / max(value, floors[key])
         report["peaks"][key] = {"value": value, "companion": companion_peaks[key],
                                 "error": err, "relative_error": rel, "unit": unit}
@@ -335,16 +346,15 @@ def estimate_report(peaks: dict, companion_peaks: dict, x_final, companion_final
         if rel > rtol:
             over.append((label, unit, value, err, rel))
     n_legs = len(scene.legs)
-    fine, coarse = _final_parts(x_final, n_legs), _final_parts(companion_final, n_legs)
+    own, other = _final_parts(x_final, n_legs), _final_parts(companion_final, n_legs)
     for key, unit in (("position", "m"), ("velocity", "m/s")):
-        report["final_state"][key] = {"error": richardson(fine[key], coarse[key], ratio),
+        report["final_state"][key] = {"error": richardson(own[key], other[key], ratio, order),
                                       "unit": unit}
     report["within_rtol"] = not over
     messages = []
     if over:
         # error ∝ Δt^p: the Δt that would meet rtol, with a margin for the scatter
-        suggested = DT_SAFETY * dt * (rtol / min(worst, MAX_SCALED_ERROR)) ** (
-            1.0 / ESTIMATE_ORDER)
+        suggested = DT_SAFETY * dt * (rtol / min(worst, MAX_SCALED_ERROR)) ** (1.0 / order)
         report["suggested_dt"] = suggested
         for label, unit, value, err, rel in over:
             messages.append(

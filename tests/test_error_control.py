@@ -36,6 +36,10 @@ def test_richardson_of_a_first_order_sequence_is_exact():
     assert richardson(q(0.1), q(0.2), 2.0, order=2) == pytest.approx(0.01)
     # a finer companion (ratio 1/2): Q(h) − Q(h/2) = c h / 2, half the error at p = 1
     assert richardson(q(0.1), q(0.05), 0.5, order=1) == pytest.approx(0.03)
+    # a second-order sequence: exact at p = 2 from either side
+    q2 = lambda h: 2.0 + 0.3 * h ** 2
+    assert richardson(q2(0.1), q2(0.05), 0.5, order=2) == pytest.approx(0.003)
+    assert richardson(q2(0.1), q2(0.2), 2.0, order=2) == pytest.approx(0.003)
     with pytest.raises(ValueError, match="`ratio`"):
         richardson(1.0, 1.0, 1.0)
 
