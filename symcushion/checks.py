@@ -447,10 +447,11 @@ def _check_buckling(scene):
                 "leg_buckles", f"leg {j}: its weaker hinge spring (k = {k:.4g} N·m/rad at "
                 f"rest) gives k/L² = {k / leg.length ** 2:.4g} N/m across the strut, below "
                 f"the axial force over the length, S/L = {load / leg.length:.4g} N/m ({what}, "
-                f"{load:.4g} N): the leg would fold, and the contact step, which cannot fold "
-                "a massless leg, lifts its foot off inside the ground instead; stiffen "
-                f"`M_beta` and `M_gamma` to at least {load * leg.length:.4g} N·m/rad or "
-                "lower the axial force.", "error", leg=j, value=k / leg.length ** 2,
+                f"{load:.4g} N): loaded off its axis the leg would fold, and the contact "
+                "step, which cannot fold a massless leg, lifts its foot off inside the "
+                f"ground instead; stiffen `M_beta` and `M_gamma` to at least "
+                f"{load * leg.length:.4g} N·m/rad or lower the axial force.", "warning",
+                leg=j, value=k / leg.length ** 2,
                 field=f"legs[{j}].M_beta"))
     return out
 
