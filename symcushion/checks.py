@@ -215,6 +215,7 @@ def check_scene(scene: Scene, model=None, x0=None) -> list:
     findings += _check_terrain(scene, x0)
     findings += _check_surfaces(scene, x0)
     findings += _check_curves(scene)
+    findings += _check_buckling(scene)
     findings += _check_free_directions(scene, x0)
     findings += _check_damping_times(scene)
     findings += _check_time_step(scene, model, x0)
@@ -408,6 +409,50 @@ def _check_damping_times(scene):
                 "element of the leg the same c/k (docs/absorbers.md, \"Dampers on every "
                 "element\").", "warning", leg=j, value=high / max(low, 1e-300),
                 field=f"legs[{j}]"))
+    return out
+
+
+def _axial_load(scene, leg) -> tuple[float, str]:
+    """The axial force (N) a leg's strut is sure to carry, and what it is: the crush
+    force of a crushable element S (it carries it whenever it crushes), else the
+    leg's share of the weight m|g|/legs (it carries that at rest)."""
+    weight = scene.body.mass * float(np.linalg.norm(scene.gravity)) / len(scene.legs)
+    axial = next((el for el in leg.elements if el.name == "S"), None)
+    names = getattr(axial.curve, "param_names", ()) if axial is not None else ()
+    if "crush_force" in names:
+        crush = float(axial.curve.param_values[names.index("crush_force")])
+        if crush > weight:
+            return crush, "its crush force"
+    return weight, "its share of the weight"
+
+
+def _check_buckling(scene):
+    """The stiffness D_p of a strut (2.1) on hinge springs has, across the strut, the
+    springs' k/L² less the axial force over the length, f_S/L (the turning of e_S under
+    a compressive f_S; (2.3)). Where f_S/L exceeds k/L² D_p is indefinite: the straight
+    leg would fold (an Euler column with a rotational spring, P·L > k), and the contact
+    step, which solves P₀ + D_p δ on the plane (1.3), finds no compressive state and
+    releases the foot: it lifts off with the foot inside the ground. With the memory
+    law D_p keeps the loading branch's crush force after the leg unloads, so the
+    refusal goes by the crush force (docs/checks.md)."""
+    out = []
+    for j, leg in enumerate(scene.legs):
+        names = {el.name: el for el in leg.elements}
+        if not {"M_beta", "M_gamma"} <= set(names):
+            continue                         # a tripod: no hinge springs to fold about
+        k = min(abs(float(names[n].curve.slope(0.0, 0.0))) for n in ("M_beta", "M_gamma"))
+        load, what = _axial_load(scene, leg)
+        if k < load * leg.length:
+            out.append(Finding(
+                "leg_buckles", f"leg {j}: its weaker hinge spring (k = {k:.4g} N·m/rad at "
+                f"rest) gives k/L² = {k / leg.length ** 2:.4g} N/m across the strut, below "
+                f"the axial force over the length, S/L = {load / leg.length:.4g} N/m ({what}, "
+                f"{load:.4g} N): loaded off its axis the leg would fold, and the contact "
+                "step, which cannot fold a massless leg, lifts its foot off inside the "
+                f"ground instead; stiffen `M_beta` and `M_gamma` to at least "
+                f"{load * leg.length:.4g} N·m/rad or lower the axial force.", "warning",
+                leg=j, value=k / leg.length ** 2,
+                field=f"legs[{j}].M_beta"))
     return out
 
 

@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .error_control import (DEFAULT_ESTIMATE_RTOL, PeakTracker, StepErrorNorm, ToleranceError,
-                            check_tolerances, estimate_report, next_step,
+from .error_control import (COMPANIONS, DEFAULT_ESTIMATE_RTOL, PeakTracker, StepErrorNorm,
+                            ToleranceError, check_tolerances, estimate_report, next_step,
                             step_pair_function)
 from .layout import MODES, output_layout, state_layout
 from .stability import STABILITY_SAFETY, stable_dt
@@ -31,7 +31,8 @@ from .validation import real
 from .trajectory import Trajectory, _assemble, initial_output, trajectory_from
 
 __all__ = ["Trajectory", "trajectory_from", "initial_output", "simulate", "save", "RunWarning",
-           "BLOCK_STEPS", "KEEP_ROWS", "MAX_EVENTS", "MIN_STEP_FRACTION", "MAX_STEP_FRACTION"]
+           "BLOCK_STEPS", "KEEP_ROWS", "MAX_EVENTS", "MIN_STEP_FRACTION", "MAX_STEP_FRACTION",
+           "MAX_STEP_DT"]
 
 #: Steps per rollout call: building a 500-step mapaccum takes about 0.1 s and
 #: a block's rows take 0.4 MB (4 legs), so progress updates several times a
@@ -59,6 +60,13 @@ MIN_STEP_FRACTION = 2.0 ** -20
 #: free flight has no error to limit the step, and a touchdown must not be
 #: stepped over before the estimate can see it.
 MAX_STEP_FRACTION = 1e-2
+
+#: Largest step of an error-controlled run, in units of the scene's Δt: the
+#: scene's Δt is the time scale its author resolves the touchdowns with, and a
+#: step doubling pair of 20 ms in the lunar lander's flight lands its second
+#: touchdown 2 ms late (peak specific force 3e-3 off at rtol = 1e-3; a pair
+#: of at most 4Δt: 7e-4, docs/error-control.md).
+MAX_STEP_DT = 2.0
 
 class RunWarning(UserWarning):
     """A finding of a run monitor, raised through :mod:`warnings` by the API."""
@@ -152,7 +160,7 @@ class _Recorder:
                 f"the simulation produced non-finite body positions near t = {t[0]:.4g} s; "
                 "reduce `dt` or check the scene.")
         self._events(t, Y)
-        self.peaks.update(Y)
+        self.peaks.update(Y, t)
         if self.monitor is not None and self.count:
             self._monitor(t, X, Y)
         if self.sink is not None:
@@ -248,7 +256,7 @@ def _check_arguments(scene, model, x0, p, adaptive, eps, stability, monitor, sin
 def simulate(scene, *, model: StepModel | None = None, x0=None, p=None,
              adaptive: bool = False, eps: float = STEP_CRITERION_EPS,
              stability: bool | float = False, rtol: float | None = None,
-             atol: float | None = None, estimate: bool = True,
+             atol: float | None = None, estimate: bool | str = True,
              estimate_rtol: float = DEFAULT_ESTIMATE_RTOL, progress: bool = False,
              monitor=True, sink=None, keep_rows: int | None = None) -> Trajectory:
     """Simulate a scene.
@@ -284,12 +292,15 @@ def simulate(scene, *, model: StepModel | None = None, x0=None, p=None,
         The scene's Δt is the first pair's 2h; rows come at the variable
         times of the steps. ``info`` reports ``steps``, ``step_evaluations``,
         ``rejected``, ``dt_min``, ``dt_max``. Ignores ``adaptive`` and ``eps``.
-    estimate : bool
+    estimate : bool or str
         Fixed-Δt runs: estimate the error of the peaks (specific force, leg
         force, stroke) and of the final state by Richardson's rule from a
-        companion run at about 2Δt (half the cost again), reported in
-        ``info['error_estimate']``; a peak whose estimated relative error
-        exceeds ``estimate_rtol`` gives a warning that names a Δt to use.
+        companion run, reported in ``info['error_estimate']``; a peak whose
+        estimated relative error exceeds ``estimate_rtol`` gives a warning
+        that names a Δt to use. ``True`` or ``"coarse"``: a companion at about
+        2Δt (half the run's cost again); ``"fine"``: at Δt/2 (twice the
+        run's cost, far more often within a factor 3 of the true error,
+        docs/error-control.md); ``False``: none.
     estimate_rtol : float
         Tolerance of that warning, in (0, 1) (default
         :data:`~symcushion.error_control.DEFAULT_ESTIMATE_RTOL`).
@@ -316,6 +327,7 @@ def simulate(scene, *, model: StepModel | None = None, x0=None, p=None,
         raise ToleranceError("`estimate_rtol` must be a number in (0, 1), got None; give e.g. "
                              f"estimate_rtol={DEFAULT_ESTIMATE_RTOL:g}, or estimate=False.")
     estimate_rtol, _ = check_tolerances(estimate_rtol, None, "estimate_rtol")
+    companion = _companion(estimate)
     scene, model, x0, p, stability, monitor, keep_rows = _check_arguments(
         scene, model, x0, p, adaptive or rtol is not None, eps, stability, monitor, sink,
         keep_rows)
@@ -327,8 +339,8 @@ def simulate(scene, *, model: StepModel | None = None, x0=None, p=None,
         elif not adaptive:
             info = _run_fixed(model, x0, p, recorder.block)
             info["rollout_seconds"] = time.perf_counter() - started
-            if estimate:
-                _estimate_fixed(model, x0, p, info, recorder, estimate_rtol)
+            if companion:
+                _estimate_fixed(model, x0, p, info, recorder, estimate_rtol, companion)
         else:
             info = _run_adaptive(model, x0, p, eps, recorder, stability)
     except BaseException as exc:
@@ -348,6 +360,8 @@ def simulate(scene, *, model: StepModel | None = None, x0=None, p=None,
     traj.info["gravity"] = scene.gravity      # the vertical of the angles, for Trajectory.load
     traj.info["name"] = scene.name
     traj.info["peaks"] = dict(recorder.peaks.values)
+    traj.info["peaks_sampled"] = dict(recorder.peaks.sampled)
+    traj.info["peak_times"] = dict(recorder.peaks.times)
     return traj
 
 
@@ -368,25 +382,39 @@ def _run_fixed(model, x0, p, on_block, dt=None, steps=None) -> dict:
             "step_evaluations": steps}
 
 
-def _estimate_fixed(model, x0, p, info, recorder, rtol):
+def _companion(estimate) -> str | None:
+    """The companion named by ``simulate(estimate=...)``: a key of COMPANIONS or None."""
+    if estimate is True:
+        return "coarse"
+    if estimate is False or estimate is None:
+        return None
+    if isinstance(estimate, str) and estimate in COMPANIONS:
+        return estimate
+    raise ValueError(f"`estimate` must be True, False or one of {sorted(COMPANIONS)}, got "
+                     f"{estimate!r}; give e.g. estimate='fine' (docs/error-control.md).")
+
+
+def _estimate_fixed(model, x0, p, info, recorder, rtol, companion="coarse"):
     """The error estimate of a finished fixed-Δt run (``info['error_estimate']``): a
-    companion run of half as many steps over the same time, Richardson's rule on
-    the peaks and the final state, a warning per peak above ``rtol``."""
+    companion run over the same time with half as many steps (``"coarse"``) or
+    twice as many (``"fine"``), Richardson's rule on the peaks and the final
+    state, a warning per peak above ``rtol``."""
     steps, dt = info["steps"], info["dt"]
-    if steps < 2:
+    if steps < 2 and companion == "coarse":
         info["error_estimate"] = None       # one step has no coarser companion
         return
     started = time.perf_counter()
-    companion_steps = steps // 2
+    companion_steps = round(steps / COMPANIONS[companion])
     companion_dt = steps * dt / companion_steps
     peaks = PeakTracker(model.n_legs, model.scene.gravity)
-    peaks.update(initial_output(model, x0)[:, None])
-    companion = _run_fixed(model, x0, p, lambda t, X, Y: peaks.update(Y), companion_dt,
+    peaks.update(initial_output(model, x0)[:, None], np.zeros(1))
+    companion = _run_fixed(model, x0, p, lambda t, X, Y: peaks.update(Y, t), companion_dt,
                            companion_steps)
     report, messages = estimate_report(
         recorder.peaks.values, peaks.values, info["final_state"], companion["final_state"],
         dt=dt, companion_dt=companion_dt, scene=model.scene, rtol=rtol)
     report["companion_seconds"] = time.perf_counter() - started
+    report["overhead"] = report["companion_seconds"] / max(info["rollout_seconds"], 1e-9)
     info["error_estimate"] = report
     t_end = steps * dt
     for message in messages:
@@ -468,7 +496,8 @@ def _run_controlled(model, x0, p, rtol, atol, recorder, stability=0.0) -> dict:
     pair = step_pair_function(model.step)
     norm = StepErrorNorm(scene, rtol, atol, x0)
     t_end = scene.duration
-    h_min, h_max = MIN_STEP_FRACTION * scene.dt, MAX_STEP_FRACTION * t_end
+    h_min = MIN_STEP_FRACTION * scene.dt
+    h_max = min(MAX_STEP_FRACTION * t_end, MAX_STEP_DT * scene.dt)
     h, t, x = scene.dt / 2, 0.0, np.asarray(x0, float)
     rows = _RowBuffer(recorder)
     steps = evaluations = rejected = floor = capped = 0
@@ -480,10 +509,11 @@ def _run_controlled(model, x0, p, rtol, atol, recorder, stability=0.0) -> dict:
             h_stable = stability * stable_dt(model, x, p)
             if h_stable < h:
                 h, capped = h_stable, capped + 1
-        x1, y1, x2, y2, x_big, y_big = pair(x, p, h)
+        # one conversion of each output to NumPy: the error norm, the rows and the
+        # next pair read them several times
+        x1, y1, x2, y2, x_big, y_big = (out.full().ravel() for out in pair(x, p, h))
         evaluations += 3
-        err = norm(np.asarray(x2, float).ravel(), np.asarray(y2, float).ravel(),
-                   np.asarray(x_big, float).ravel(), np.asarray(y_big, float).ravel(), h)
+        err = norm(x2, y2, x_big, y_big, h)
         if not np.isfinite(err):
             err = np.inf
         if err > 1 and h > h_min:
@@ -496,8 +526,8 @@ def _run_controlled(model, x0, p, rtol, atol, recorder, stability=0.0) -> dict:
         rows.add(t + h, x1, y1)
         t = t + 2 * h if h < remaining else t_end
         rows.add(t, x2, y2)
-        x = np.asarray(x2, float).ravel()
-        norm.accept(x, np.asarray(y2, float).ravel())
+        x = x2
+        norm.accept(x2, y2)
         steps += 2
         h = next_step(h, err)
     rows.flush()

@@ -7,8 +7,9 @@ alone (docs/error-control.md):
   force on the body, the peak force on a foot and the peak stroke of a leg —
   tracked over every row of a run (:class:`PeakTracker`);
 * the **estimate of a fixed-Δt run** by Richardson's rule from a companion
-  run at about 2Δt: E ≈ |Q(Δt) − Q(2Δt)| / (r^p − 1) with r the ratio of the
-  steps and p = :data:`ESTIMATE_ORDER` (:func:`richardson`,
+  run at about 2Δt or Δt/2 (:data:`COMPANIONS`): E ≈ |Q(Δt) − Q(rΔt)| /
+  |r^p − 1| with r the ratio of the steps and p = :data:`ESTIMATE_ORDER`
+  (:func:`richardson`,
   :func:`estimate_report`), with a warning that names the Δt that would meet
   the tolerance;
 * the **error norm of step doubling** (:class:`StepErrorNorm`): one step of
@@ -29,9 +30,11 @@ from .layout import output_layout, state_layout
 from .validation import real
 
 __all__ = ["PEAKS", "ESTIMATE_ORDER", "DEFAULT_ESTIMATE_RTOL", "DT_SAFETY", "MAX_SCALED_ERROR",
+           "COMPANIONS",
            "CONTROL_ORDER",
            "CONTROL_SAFETY", "FAC_MIN", "FAC_MAX", "STROKE_FLOOR", "GRAVITY_FLOOR",
-           "PeakTracker", "StepErrorNorm", "ToleranceError", "check_tolerances", "peak_floors",
+           "PeakTracker", "parabola_peak", "SMOOTH_PEAK_MISFIT", "TAIL_ROWS", "StepErrorNorm",
+           "ToleranceError", "check_tolerances", "peak_floors",
            "richardson", "estimate_report", "next_step", "step_pair_function"]
 
 #: The peak quantities of a run: name → (label, unit). Loads are what a leg
@@ -44,10 +47,19 @@ PEAKS = {
 
 #: Order p of Richardson's estimate. Measured on the four landers of
 #: docs/error-control.md, the peaks converge at orders 0.7–2.9 and the final
-#: state at 0.3–1.5 (first order where events dominate, docs/event-order.md);
-#: p = 1 is the safe choice: it overestimates a second-order error threefold
-#: and underestimates only errors that converge more slowly than Δt.
+#: state at 0.3–1.5 (first order where events dominate, docs/event-order.md),
+#: and the order observed from three runs is noise (−3.6 to 9.7); p = 1 is the
+#: safe choice. A scheme of another order changes a coarse companion's
+#: estimate by up to 1/(2^p − 1) and a fine one's by at most a factor 2
+#: (:func:`estimate_report`).
 ESTIMATE_ORDER = 1.0
+
+#: The companion runs of a fixed-Δt run's estimate: name → ratio of its step
+#: to the run's. "coarse" (2Δt) costs half the run again, "fine" (Δt/2) twice
+#: the run; the fine one is within a factor 3 of the true error far more often
+#: (docs/error-control.md, measured): a coarse companion is often not yet
+#: converging at the rate of the run itself.
+COMPANIONS = {"coarse": 2.0, "fine": 0.5}
 
 #: Default tolerance on the relative error of the peak quantities of a
 #: fixed-Δt run: 1 % is well inside the margins designs carry on loads
@@ -108,8 +120,75 @@ def check_tolerances(rtol, atol, rtol_name: str = "rtol") -> tuple:
     return rtol, _tolerance("atol", atol, nonnegative=True)
 
 
+#: Largest misfit of the parabola through three rows at the rows two steps
+#: away, in units of the middle row's rise over its lower neighbour: at a
+#: smooth maximum the misfit is of order Δt³ against a rise of order Δt²; at a
+#: kink (a tent: 2×) or a jump (1–2×) it is of the rise's own size, and the
+#: sampled row is kept there (docs/error-control.md).
+SMOOTH_PEAK_MISFIT = 0.5
+
+
+def _through(t, t0, t1, t2, y0, y1, y2):
+    """The parabola through (t0, y0), (t1, y1), (t2, y2), at t; and its leading coefficient."""
+    s01 = (y1 - y0) / (t1 - t0)
+    curv = ((y2 - y1) / (t2 - t1) - s01) / (t2 - t0)
+    return y0 + s01 * (t - t0) + curv * (t - t0) * (t - t1), curv
+
+
+def parabola_peak(t, y):
+    """Each smooth local maximum of sampled series, refined by a parabola through three rows.
+
+    Parameters
+    ----------
+    t : array_like, shape (T,)
+        Sample times (s), increasing; need not be uniform.
+    y : array_like, shape (C, T)
+        C series of samples.
+
+    Returns
+    -------
+    peak : ndarray, shape (C, T - 4)
+        At a row k (2 ≤ k < T − 2) at least as high as both neighbours, where
+        the parabola through rows k−1, k, k+1 also fits rows k±2 to within
+        :data:`SMOOTH_PEAK_MISFIT` × the rise of row k over its lower
+        neighbour, the parabola's vertex value; elsewhere the row itself.
+    when : ndarray, shape (C, T - 4)
+        The time of that value (s).
+    """
+    t = np.asarray(t, dtype=float)
+    y = np.asarray(y, dtype=float)
+    tm, t0, t1, t2, tp = t[:-4], t[1:-3], t[2:-2], t[3:-1], t[4:]
+    ym, y0, y1, y2, yp = y[:, :-4], y[:, 1:-3], y[:, 2:-2], y[:, 3:-1], y[:, 4:]
+    at_m, curv = _through(tm, t0, t1, t2, y0, y1, y2)
+    at_p, _ = _through(tp, t0, t1, t2, y0, y1, y2)
+    rise = y1 - np.minimum(y0, y2)
+    smooth = np.maximum(np.abs(at_m - ym), np.abs(at_p - yp)) <= SMOOTH_PEAK_MISFIT * rise
+    refine = (y1 >= y0) & (y1 >= y2) & (curv < 0) & smooth
+    safe = np.where(refine, curv, -1.0)
+    # the vertex, where the derivative s01 + curv (2τ − t0 − t1) vanishes
+    s01 = (y1 - y0) / (t1 - t0)
+    vertex = np.clip(0.5 * (t0 + t1) - s01 / (2.0 * safe), t0, t2)
+    value, _ = _through(vertex, t0, t1, t2, y0, y1, y2)
+    peak = np.where(refine, np.maximum(value, y1), y1)
+    when = np.where(refine, vertex, np.broadcast_to(t1, y1.shape))
+    return peak, when
+
+
+#: Rows a :class:`PeakTracker` carries from one block to the next: the
+#: parabola test of :func:`parabola_peak` reads five rows around a maximum.
+TAIL_ROWS = 4
+
+
 class PeakTracker:
     """The running peaks of :data:`PEAKS` over every row of a run.
+
+    Each peak is read from a parabola through the three rows around a local
+    maximum (:func:`parabola_peak`) rather than as the largest row: a sampled
+    maximum misses the true one by an amount set by where the time grid falls
+    relative to the peak's time (of order Δt² at a smooth maximum), an error
+    that no order of convergence describes and that a run at another Δt
+    samples differently (docs/error-control.md). ``sampled`` keeps the
+    largest row itself, ``times`` the time of each peak.
 
     Parameters
     ----------
@@ -122,17 +201,44 @@ class PeakTracker:
         self._yl = output_layout(n_legs)
         self._g = np.asarray(gravity, dtype=float)
         self.values = dict.fromkeys(PEAKS, 0.0)
+        self.sampled = dict.fromkeys(PEAKS, 0.0)
+        self.times = dict.fromkeys(PEAKS, 0.0)
+        self._tail_t = np.zeros(0)                  # the last rows seen, for the parabola
+        self._tail = dict.fromkeys(PEAKS)
 
-    def update(self, Y):
-        """Fold outputs Y (ny, B) of B steps into the peaks."""
-        Y = np.asarray(Y, dtype=float)
+    def _series(self, Y) -> dict:
         acc = self._yl.get(Y, "acceleration") - self._g[:, None]
-        force = self._yl.legs(Y, "force")                     # (N, 3, B)
-        new = {"peak_specific_force": np.linalg.norm(acc, axis=0),
-               "peak_leg_force": np.linalg.norm(force, axis=1),
-               "peak_stroke": np.abs(self._yl.legs(Y, "stroke"))}
-        for key, v in new.items():
-            self.values[key] = max(self.values[key], float(np.max(v, initial=0.0)))
+        return {"peak_specific_force": np.linalg.norm(acc, axis=0)[None, :],
+                "peak_leg_force": np.linalg.norm(self._yl.legs(Y, "force"), axis=1),
+                "peak_stroke": np.abs(self._yl.legs(Y, "stroke"))}
+
+    def update(self, Y, t=None):
+        """Fold outputs Y (ny, B) of B steps at times ``t`` (B,) into the peaks.
+
+        Without ``t`` the rows are taken one time unit apart after the last
+        ones (uniform steps).
+        """
+        Y = np.asarray(Y, dtype=float)
+        if t is None:
+            start = self._tail_t[-1] + 1.0 if self._tail_t.size else 0.0
+            t = start + np.arange(Y.shape[1], dtype=float)
+        t = np.asarray(t, dtype=float)
+        times = np.concatenate([self._tail_t, t])
+        for key, new in self._series(Y).items():
+            if new.size:
+                self.sampled[key] = max(self.sampled[key], float(np.max(new)))
+            series = new if self._tail[key] is None else np.hstack([self._tail[key], new])
+            if series.shape[1] >= 5:
+                peak, when = parabola_peak(times, series)
+                k = np.unravel_index(np.argmax(peak), peak.shape)
+                if peak[k] > self.values[key]:
+                    self.values[key], self.times[key] = float(peak[k]), float(when[k])
+            # the last row is a peak of its own until a later row shows it is not
+            last = int(np.argmax(series[:, -1])) if series.size else 0
+            if series.size and series[last, -1] > self.values[key]:
+                self.values[key], self.times[key] = float(series[last, -1]), float(times[-1])
+            self._tail[key] = series[:, -TAIL_ROWS:]
+        self._tail_t = times[-TAIL_ROWS:]
 
 
 #: Floor of the stroke scale, in units of the shortest leg: 1 % of a leg
@@ -154,15 +260,19 @@ def peak_floors(scene) -> dict:
             "peak_stroke": STROKE_FLOOR * min(leg.length for leg in scene.legs)}
 
 
-def richardson(fine, coarse, ratio: float, order: float = ESTIMATE_ORDER):
-    """Richardson's estimate of the error of ``fine``: |fine − coarse| / (ratio^p − 1).
+def richardson(value, companion, ratio: float, order: float = ESTIMATE_ORDER):
+    """Richardson's estimate of the error of ``value``: |value − companion| / |ratio^p − 1|.
+
+    With an error C Δt^p, the runs at Δt and ``ratio`` × Δt differ by
+    C Δt^p |ratio^p − 1|: a coarser companion (ratio > 1) or a finer one
+    (ratio < 1) alike.
 
     Parameters
     ----------
-    fine, coarse : float or array_like
-        A quantity from runs at Δt and at ``ratio`` × Δt.
+    value, companion : float or array_like
+        A quantity from the run at Δt and from its companion at ``ratio`` × Δt.
     ratio : float
-        Ratio of the coarse step to the fine one (> 1).
+        Ratio of the companion's step to the run's (positive, not 1).
     order : float
         p, the order of convergence assumed.
 
@@ -171,8 +281,11 @@ def richardson(fine, coarse, ratio: float, order: float = ESTIMATE_ORDER):
     float
         The estimate (max-norm over the entries of an array).
     """
-    diff = np.abs(np.asarray(fine, dtype=float) - np.asarray(coarse, dtype=float))
-    return float(np.max(diff, initial=0.0)) / (ratio ** order - 1.0)
+    if not ratio > 0 or ratio == 1:
+        raise ValueError(f"`ratio` must be positive and not 1 (the companion's step over the "
+                         f"run's), got {ratio!r}; give e.g. 2.0 or 0.5.")
+    diff = np.abs(np.asarray(value, dtype=float) - np.asarray(companion, dtype=float))
+    return float(np.max(diff, initial=0.0)) / abs(ratio ** order - 1.0)
 
 
 def _final_parts(x, n_legs) -> dict:
@@ -181,7 +294,8 @@ def _final_parts(x, n_legs) -> dict:
 
 
 def estimate_report(peaks: dict, companion_peaks: dict, x_final, companion_final, *, dt: float,
-                    companion_dt: float, scene, rtol: float) -> tuple[dict, list]:
+                    companion_dt: float, scene, rtol: float,
+                    order: float = ESTIMATE_ORDER) -> tuple[dict, list]:
     """The error estimate of a fixed-Δt run from its companion run.
 
     Parameters
@@ -191,12 +305,19 @@ def estimate_report(peaks: dict, companion_peaks: dict, x_final, companion_final
     x_final, companion_final : array_like, shape (nx,)
         Their final states (the same end time).
     dt, companion_dt : float
-        Their steps (s); ``companion_dt`` > ``dt``.
+        Their steps (s): ``companion_dt`` about 2 ``dt`` (a coarse companion)
+        or ``dt`` / 2 (a fine one, :data:`COMPANIONS`).
     scene : Scene
         The run's scene (the legs, and the floors of :func:`peak_floors`).
     rtol : float
         Tolerance on the relative error of every peak, relative to the peak
         or its floor (:func:`peak_floors`), whichever is larger.
+    order : float
+        p, the order the errors are taken to converge at. A fine companion
+        scales the difference by 2^p / (2^p − 1), between 1 and 2 for any
+        p ≥ 1, a coarse one by 1 / (2^p − 1), from 1 down to 1/7 at p = 3: the
+        fine estimate barely depends on the scheme's order, the coarse one
+        does (docs/error-control.md).
 
     Returns
     -------
@@ -209,14 +330,15 @@ def estimate_report(peaks: dict, companion_peaks: dict, x_final, companion_final
         One line per peak whose estimate exceeds ``rtol``.
     """
     ratio = companion_dt / dt
-    report = {"method": "Richardson from a companion run", "order": ESTIMATE_ORDER, "dt": dt,
+    report = {"method": "Richardson from a companion run", "order": order, "dt": dt,
+              "companion": "fine" if ratio < 1 else "coarse",
               "companion_dt": companion_dt, "rtol": rtol, "peaks": {}, "final_state": {}}
     worst = 0.0
     over = []
     floors = peak_floors(scene)
     for key, (label, unit) in PEAKS.items():
         value = peaks[key]
-        err = richardson(value, companion_peaks[key], ratio)
+        err = richardson(value, companion_peaks[key], ratio, order)
         rel = err / max(value, floors[key])
         report["peaks"][key] = {"value": value, "companion": companion_peaks[key],
                                 "error": err, "relative_error": rel, "unit": unit}
@@ -224,16 +346,15 @@ def estimate_report(peaks: dict, companion_peaks: dict, x_final, companion_final
         if rel > rtol:
             over.append((label, unit, value, err, rel))
     n_legs = len(scene.legs)
-    fine, coarse = _final_parts(x_final, n_legs), _final_parts(companion_final, n_legs)
+    own, other = _final_parts(x_final, n_legs), _final_parts(companion_final, n_legs)
     for key, unit in (("position", "m"), ("velocity", "m/s")):
-        report["final_state"][key] = {"error": richardson(fine[key], coarse[key], ratio),
+        report["final_state"][key] = {"error": richardson(own[key], other[key], ratio, order),
                                       "unit": unit}
     report["within_rtol"] = not over
     messages = []
     if over:
         # error ∝ Δt^p: the Δt that would meet rtol, with a margin for the scatter
-        suggested = DT_SAFETY * dt * (rtol / min(worst, MAX_SCALED_ERROR)) ** (
-            1.0 / ESTIMATE_ORDER)
+        suggested = DT_SAFETY * dt * (rtol / min(worst, MAX_SCALED_ERROR)) ** (1.0 / order)
         report["suggested_dt"] = suggested
         for label, unit, value, err, rel in over:
             messages.append(

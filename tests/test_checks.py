@@ -1,5 +1,6 @@
 """Physical sanity checks: check_scene, preflight and the run monitor."""
 import json
+import tomllib
 import warnings
 from pathlib import Path
 
@@ -219,3 +220,41 @@ def test_a_leg_damped_on_its_axis_alone_is_warned():
     found = [f for f in check_scene(scene_from_dict(data)) if f.kind == "damping_times"]
     assert len(found) == 3 and found[0].severity == "warning"
     assert "S 3.5 ms" in found[0].message and "same c/k" in found[0].message
+
+
+def _tutorial_with_hinge_stiffness(k):
+    """The tutorial lander (crush force 2 kN, legs of 0.8 m) with both hinge springs at k
+    N·m/rad, their dampers keeping the elements' common damping time."""
+    data = tomllib.loads((ROOT / "studies" / "tutorial" / "lander.toml").read_text())
+    for name in ("M_beta", "M_gamma"):
+        spring = data["legs"][name]
+        spring["damping"] *= k / spring["stiffness"]
+        spring["stiffness"] = k
+    return scene_from_dict(data)
+
+
+def test_a_leg_whose_hinge_springs_cannot_hold_its_crush_force_is_warned():
+    # k/L² = 1000/0.64 = 1562 N/m below S/L = 2000/0.8 = 2500 N/m; the bound is 1600 N·m/rad
+    weak = _tutorial_with_hinge_stiffness(1000.0)
+    found = [f for f in check_scene(weak) if f.kind == "leg_buckles"]
+    assert [f.leg for f in found] == [0, 1, 2]
+    assert all(f.severity == "warning" and f.field == f"legs[{f.leg}].M_beta" for f in found)
+    assert "1600 N·m/rad" in found[0].message and "crush force" in found[0].message
+    with pytest.warns(PhysicsWarning, match="would fold"):
+        preflight(weak)
+    with pytest.raises(SceneError, match="would fold"):          # `symcushion check --strict`
+        preflight(weak, strict=True)
+    stiff = _tutorial_with_hinge_stiffness(1700.0)
+    assert not [f for f in check_scene(stiff) if f.kind == "leg_buckles"]
+
+
+def test_the_warned_leg_lifts_off_inside_the_ground():
+    # what the warning is about: the downhill leg's contact step releases the foot while
+    # it is inside the slope (the run monitor's penetration finding)
+    weak = _tutorial_with_hinge_stiffness(1000.0).with_(duration=0.15)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        run = simulate(weak, estimate=False)
+    lift = [e["time"] for e in run.info["events"] if e["kind"] == "lift-off" and e["leg"] == 0]
+    inside = [w for w in run.info["warnings"] if "inside an obstacle" in w["message"]]
+    assert lift and inside and inside[0]["time"] == pytest.approx(lift[0])
