@@ -155,6 +155,20 @@ class RobustResult:
         return int(np.sum(np.all(r <= 1.0, axis=0)))
 
 
+def design_checks(limits: dict) -> list:
+    """The checks whose losses the design minimises, in :data:`CHECKS` order.
+
+    Every check with a limit, except the tilt where the tip-over energy check
+    is on: the tilt of a tipped lander saturates its loss whatever the design,
+    and a scenario's loss is its largest over the checks, so the tilt would
+    hide the energy margin's gradient. The tilt limit then only fades the
+    energy samples of a lander that has tipped (:func:`.margins.tip_energy`).
+    """
+    energy = limits.get("tip_energy") is not None
+    return [c for c in CHECKS if limits.get(c) is not None
+            and not (c == "tip_over" and energy)]
+
+
 class EnvelopeDesign(_DesignSpace, _GradientCheck):
     """The scenario NLP of a design for the envelope.
 
@@ -238,7 +252,7 @@ class EnvelopeDesign(_DesignSpace, _GradientCheck):
                             stroke=lim.stroke, beta=lim.beta,
                             gamma=lim.gamma, deceleration=lim.deceleration,
                             rebound=lim.rebound_speed, moving=lim.rest_speed)
-        self.checks = [c for c in CHECKS if self._limits[c] is not None]
+        self.checks = design_checks(self._limits)
         self._resolve_variables(list(variables), list(geometry))
         self._resolve_geometry(list(geometry), practical, model.params)
         self._shapes = self._resolve_shapes(list(shapes))
