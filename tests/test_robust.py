@@ -324,3 +324,14 @@ def test_with_the_energy_check_the_tilt_only_gates_it():
     assert design_checks(limits) == ["tip_energy", "stroke", "deceleration", "rebound",
                                      "moving"]
     assert design_checks(dict(limits, tip_energy=None))[0] == "tip_over"
+
+
+def test_a_tipped_lander_fades_every_check_but_the_energy_one():
+    """Past the tilt limit the samples go to TIP_FADED; upright they are untouched."""
+    from symcushion.robust.margins import TIP_FADED, upright
+    tilt = np.radians(35.0)
+    assert float(upright(0.0, tilt)) == pytest.approx(1.0, abs=1e-12)
+    assert float(upright(1 - np.cos(tilt), tilt)) == pytest.approx(0.5, abs=1e-12)
+    assert float(upright(1.0, tilt)) == pytest.approx(0.0, abs=1e-12)    # lying at 90°
+    lying = float(upright(1.0, tilt))
+    assert lying * 2.5 + (1 - lying) * TIP_FADED == pytest.approx(TIP_FADED, abs=1e-9)

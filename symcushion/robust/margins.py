@@ -27,8 +27,12 @@ the last :data:`REST_WINDOW` of the horizon over rest_speed (the envelope's
 at-rest check, averaged over a window so that a body chattering between an
 absorber's branches, still at one step and moving at the next, is seen,
 while a single-step spike of the chatter does not decide it as a maximum
-would). A ratio above 1 fails that limit. Signed pairs (±δ) keep the aggregate smooth where a
-deflection passes through zero.
+would). With the energy check on, every sample fades out once the lander is
+past the tilt limit (:func:`upright`): a lander lying on its side moves and
+deflects its legs in ways that saturate every check whatever the design,
+and its failure is the energy check's. A ratio above 1 fails that limit.
+Signed pairs (±δ) keep the aggregate smooth where a deflection passes
+through zero.
 
 It must not choose scenarios, designs or weights, and it must not classify:
 the envelope's running extrema (``symcushion.envelope``) stay the judge of a
@@ -66,8 +70,9 @@ DEFAULT_SHARPNESS = 200.0
 #: units of the tilt ratio (1 − cos)/(1 − cos tilt_max): they are half faded
 #: at the limit and gone 10 % beyond it.
 TIP_GATE_WIDTH = 0.05
-#: What a faded tip-over energy sample is worth: far below any sample of an
-#: upright lander (a surplus of −10 units), so it never sets the aggregate.
+#: What a faded sample is worth (the energy check's, and with it on every
+#: check's, once the lander has tipped): far below any ratio of an upright
+#: lander (a surplus of −10 units), so it never sets the aggregate.
 TIP_FADED = -9.0
 #: Start of the running maximum: far below any ratio, so the first sample
 #: takes over (exp(ρ·(−1e3)) underflows to 0 exactly).
@@ -99,9 +104,18 @@ def tip_energy(surplus, one_minus_cos_tilt, limits):
     ratio = 1 + surplus / unit
     if tilt is None:
         return ratio
-    over = (one_minus_cos_tilt - (1 - np.cos(tilt))) / (1 - np.cos(tilt))
-    gate = 0.5 * (1 - ca.tanh(over / TIP_GATE_WIDTH))
+    gate = upright(one_minus_cos_tilt, tilt)
     return gate * ratio + (1 - gate) * TIP_FADED
+
+
+def upright(one_minus_cos_tilt, tilt: float):
+    """Smooth indicator of a lander within the tilt limit: 1 upright, 0 tipped over.
+
+    Half at the limit, gone :data:`TIP_GATE_WIDTH` × 2 beyond it in units of
+    the tilt ratio (1 − cos)/(1 − cos tilt_max).
+    """
+    over = (one_minus_cos_tilt - (1 - np.cos(tilt))) / (1 - np.cos(tilt))
+    return 0.5 * (1 - ca.tanh(over / TIP_GATE_WIDTH))
 
 
 def margins_function(model: StepModel, steps: int, limits: dict, *,
@@ -187,6 +201,13 @@ def margins_function(model: StepModel, steps: int, limits: dict, *,
     weight = ca.if_else(t + h >= (steps * h) - REST_WINDOW * (1 - 1e-9), h, 0.0)
     motion = ratio("moving", ca.norm_2(xl.get(x1, "velocity"))
                    + ca.norm_2(xl.get(x1, "angular_velocity")) * float(reach))
+    if limits.get("tip_energy") is not None and limits.get("tip_over") is not None:
+        # a lander that has tipped over lies on another face: its legs' and body's
+        # motion then says nothing a design can use (every check would saturate,
+        # flat), and its failure is the energy check's; fade every sample out
+        gate = upright(meas["one_minus_cos_tilt"], limits["tip_over"])
+        samples[2:] = [gate * v + (1 - gate) * TIP_FADED for v in samples[2:]]
+        motion = gate * motion
     m1, s1 = [], []
     for i, v in enumerate(samples):
         mi, si = _ks_update(m[i], s[i], v, rho)
