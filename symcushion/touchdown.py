@@ -585,6 +585,10 @@ def build_model(scene: Scene, geometry: str = "input") -> StepModel:
         new_feet.append(dict(foot=foot_w, contact=contact, force_body=P1,
                              **(_memory_state(r) if memory[j]
                                 else {f: feet[j][f] for f in MEMORY_FIELDS})))
+        if r.get("events") is not None:
+            # a touchdown or lift-off located inside the step (memory law, FeetStep.event_kick)
+            switch_force, switch_torque = switch_force + r["events"][0], \
+                switch_torque + r["events"][1]
         if scene.events in ("branch", "lock") and locates_switch(leg):
             # the kick at the located loading/unloading switch (symcushion.branch_switch)
             dF, dT, _ = branch_switch_kick(
@@ -608,7 +612,8 @@ def build_model(scene: Scene, geometry: str = "input") -> StepModel:
                                                                  feet[j]["foot"], r["r_s"])),
                                        dict(rho=rho1, P=P1, R=R1, foot=foot_w), stays)))
 
-    # 4. second half kick: the located switches' correction (B1)
+    # 4. second half kick: the located switches' correction (B1), and the located
+    # touchdowns' and lift-offs' of the legs on the memory law
     vel1 = vel1 + h * switch_force / m
     omega1 = omega1 + h * (inertia_inv @ switch_torque)
 
