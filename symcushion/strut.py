@@ -484,6 +484,13 @@ class HingedStrut:
                                                None if rate is None else (rate[0], rate[1][k]))
         return ca.vertcat(*out)
 
+    def axial_lower_bound_expr(self, x, p):
+        """lo(x) of (A1) for the axial element, the loading curve it crushes along (N),
+        or None where its band has no lower bound."""
+        el = self._axial()
+        lo, _ = absorber.band(el.curve, x, self._theta(el, p))
+        return lo
+
     def free_foot_expr(self, sets, p, x_start, mean_rate, dt):
         """A free foot at the end of a step (body frame): along e₀ at the axial
         element's free stroke, or relaxing towards it behind a damper (A4); a
