@@ -258,7 +258,8 @@ class FeetStep:
         # touchdown: the force jumps to F* at θ; F* has the end rates at the touch foot
         a, b = self.damper_rate(leg, rho_s, at["span"])
         rate_end = a * fns["strut_deflections"](at["rho1"], p_leg) + b
-        F_star = fns["strut_force_memory"](rho_s, leg.sets, p_leg, 0.0, rate_end)
+        F_star = self.in_cone(fns["strut_force_memory"](rho_s, leg.sets, p_leg, 0.0, rate_end),
+                              n_b)
         down = ca.logic_and(touching, stays)
         w_star = ca.if_else(down, (1 - theta) / 2, 0.0)
         w_end = ca.if_else(down, -theta / 2, 0.0)
@@ -276,6 +277,18 @@ class FeetStep:
         force = P.R1 @ end + w_start * (P.R @ F0)
         torque = ca.cross(at["rho1"], end) + w_start * ca.cross(rho_s, F0)
         return force, torque
+
+    def in_cone(self, F, n):
+        """``F`` with its tangential part cut to the friction cone μ·max(n·F, 0) (1.4):
+        the force a foot can carry at the instant it touches, sliding where a damper
+        asks for more (at that instant its normal force is the elastic one's, zero
+        for a foot that lands on a crushable's elastic rise)."""
+        N = ca.fmax(ca.dot(n, F), 0.0)
+        tangential = F - ca.dot(n, F) * n
+        size = ca.norm_2(tangential)
+        bound = self.mu * N
+        scale = ca.if_else(size > bound, bound / ca.if_else(size > 0, size, 1.0), 1.0)
+        return N * n + scale * tangential
 
     def kink_kick(self, leg: LegInput, at: dict):
         """The kick's correction (N, body axes of the end, times h) for the bend of the

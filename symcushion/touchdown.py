@@ -614,8 +614,16 @@ def build_model(scene: Scene, geometry: str = "input") -> StepModel:
 
     # 4. second half kick: the located switches' correction (B1), and the located
     # touchdowns' and lift-offs' of the legs on the memory law
+    vel_plain, omega_plain = vel1, omega1
     vel1 = vel1 + h * switch_force / m
     omega1 = omega1 + h * (inertia_inv @ switch_torque)
+    for j, r in enumerate(res):
+        if r.get("events") is not None:
+            # the located events' kick changes the body's energy by the mean velocity times
+            # its impulse, exactly: the leg took that much less (its axial work)
+            outputs[j]["work_axial"] = outputs[j]["work_axial"] - h * (
+                ca.dot((vel_plain + vel1) / 2, r["events"][0])
+                + ca.dot((omega_plain + omega1) / 2, r["events"][1]))
 
     x_next = xl.pack(position=pos1, velocity=vel1, attitude=quat1, angular_velocity=omega1,
                      **{f: [foot[f] for foot in new_feet]
