@@ -490,8 +490,7 @@ def test_hinge_dampers_keep_a_sliding_damped_foot_on_the_ground():
     the foot slides on the ground (docs/absorbers.md, "Dampers on every element")."""
     data = read_toml(STUDIES / "lander_damped.toml")
     # leg 0 points downhill and slides: it leaves the ground once as the body rocks onto
-    # the uphill legs, as at half the step (the uphill legs' grazing re-touches of their
-    # rocking are not counted here)
+    # the uphill legs, as at half the step
     damped = _liftoffs(data)
     assert damped[0] <= 1 and damped[0] == _liftoffs(data, dt=5e-4)[0], damped
     for name in ("M_beta", "M_gamma"):
@@ -526,3 +525,26 @@ def test_hinge_dampers_need_the_memory_law():
     del data["legs"]["S"]["damping"]
     with pytest.raises(ValueError, match="`M_beta` has a damper.*hysteresis = 'memory'"):
         scene_from_dict(data)
+
+
+def test_the_damped_landers_rocking_feet_leave_the_ground_once_and_it_converges():
+    """The damped lander rocks onto its uphill legs and back: each foot leaves the ground
+    once in its first second at Δt = 1 and 0.5 ms (a foot whose hinges snapped back to
+    rest at lift-off landed again in the next step: 2 and 4 lift-offs of the uphill
+    feet). Its final position at 1 ms is within 0.1 % of its travel of a 62.5-µs run
+    (0.17 % before the hinges relaxed and the events were located; docs/absorbers.md,
+    "Located touchdown and lift-off")."""
+    scene = load_scene(STUDIES / "lander_damped.toml")
+    xl = state_layout(3)
+    final = {}
+    for dt in (1e-3, 5e-4, 6.25e-5):
+        model = build_model(scene.with_(dt=dt))
+        X, _ = model.rollout(int(round(scene.duration / dt)))(initial_state(scene),
+                                                                model.default_p, dt)
+        X = np.asarray(X)
+        final[dt] = xl.get(X, "position")[:, -1]
+        if dt >= 5e-4:
+            contact = xl.legs(X, "contact") > 0.5
+            assert np.all(np.sum(np.diff(contact.astype(int), axis=1) < 0, axis=1) == 1), dt
+    travel = np.linalg.norm(final[6.25e-5] - scene.body.position)
+    assert np.linalg.norm(final[1e-3] - final[6.25e-5]) < 1e-3 * travel
