@@ -10,9 +10,12 @@ midpoint slip rule of ``symcushion.contact_midpoint`` with the start force
 carried into the frame of the end of the step, and, with ``events =
 "branch"`` or ``"lock"`` (a leg that is not locked), the contact step split
 at a located branch switch of the axial absorber (``symcushion.branch_switch``)
-in a call that runs only where a switch is possible. It returns each foot's
-end pose, end force and what the
-touchdown step needs to kick the body.
+in a call that runs only where a switch is possible. On the memory law
+(``symcushion.absorber``) it locates a touchdown, a lift-off and a crush
+onset inside the step and returns the kick's correction for each
+(docs/absorbers.md, "Located touchdown and lift-off"). It returns each
+foot's end pose, end force and what the touchdown step needs to kick the
+body.
 
 It must not move the body (the kicks, the drift and the stroke lock's
 solves are ``symcushion.touchdown``'s), change the contact step or the force
@@ -248,8 +251,10 @@ class FeetStep:
         impulse is (1 − θ)h(F* + F₁)/2. A foot that lifts off carries its force to
         zero at θ_off = N₀/(N₀ − N₁), N₁ the normal force it would have at the
         end held where it was (its end force, exact on the law at the stuck foot);
-        the impulse is θ_off h F₀/2. Both differ from Verlet's by O(h) once per
-        event: first order, which the correction removes.
+        the impulse is θ_off h F₀/2. Where the force jumps (behind a damper) these
+        differ from Verlet's by O(h) once per event, first order; where it does not,
+        by O(h²) with a constant that changes with θ. A crush onset inside the step
+        adds :meth:`kink_kick`.
         """
         P, fns, p_leg = self.poses, leg.fns, leg.p_leg
         rho_s, n_b, stays = at["rho_s"], at["n_b"], at["stays"]

@@ -60,6 +60,9 @@ contact law is non-smooth, so the measured order is stated by the tests
 inside a step is located by linear interpolation of the distance; the force
 at the end of that step is exact for a plane, and the impulse over the step is
 integrated by the trapezoid rule, an O(h²) local error once per touchdown.
+On the memory law the second half kick also carries each leg's located
+touchdown, lift-off and crush onset (``FeetStep.event_kick``), and the leg's
+axial work output books that kick's work.
 
 Stability: the body update is explicit in velocity, so a stiff leg limits the
 step to ω_max Δt < 2, ω_max² the largest eigenvalue of M⁻¹K (M the body's
