@@ -548,3 +548,31 @@ def test_the_damped_landers_rocking_feet_leave_the_ground_once_and_it_converges(
             assert np.all(np.sum(np.diff(contact.astype(int), axis=1) < 0, axis=1) == 1), dt
     travel = np.linalg.norm(final[6.25e-5] - scene.body.position)
     assert np.linalg.norm(final[1e-3] - final[6.25e-5]) < 1e-3 * travel
+
+
+def test_a_damped_sliding_foot_slips_at_second_order():
+    """The slope lander on the memory law (every element damped, τ = 10 ms) between
+    0.29 and 0.38 s: two feet slide, two are in the air, nothing crushes, touches or
+    lifts off. Restarted from a 31.25-µs run's state at 0.29 s, the error of the
+    velocities at 0.38 s fits order 1.79 over Δt = 2 … 0.25 ms, where it fitted 1.1
+    (first order) before the midpoint slip rule started from the foot's own start
+    force instead of the damped law's linearised offset (docs/absorbers.md, "Located
+    touchdown and lift-off"); it is not yet a clean second order."""
+    scene = load_scene(STUDIES / "lander_slope_memory.toml")
+    start, end, fine = 0.29, 0.38, 3.125e-5
+
+    def run(x0, dt, duration):
+        model = build_model(scene.with_(dt=dt))
+        X, _ = model.rollout(int(round(duration / dt)))(x0, model.default_p, dt)
+        return np.asarray(X)
+
+    X = run(initial_state(scene), fine, end)
+    x_start, x_end = X[:, int(round(start / fine)) - 1], X[:, -1]
+    xl, errors, steps = state_layout(4), [], (2e-3, 1e-3, 5e-4, 2.5e-4)
+    for dt in steps:
+        x = run(x_start, dt, end - start)[:, -1]
+        errors.append(np.linalg.norm(np.r_[xl.get(x, "velocity") - xl.get(x_end, "velocity"),
+                                           xl.get(x, "angular_velocity")
+                                           - xl.get(x_end, "angular_velocity")]))
+    order = np.polyfit(np.log(steps), np.log(errors), 1)[0]
+    assert order > 1.6, (order, errors)
