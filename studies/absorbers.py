@@ -17,6 +17,13 @@ Questions (docs/absorbers.md, "What it measures"):
 4. The damped lander's damping time τ = c/k (the same on every element, or on
    the axial element alone): the rest spread, and how often the sliding
    downhill foot leaves the ground in the first 0.5 s.
+5. The orders through touchdowns and lift-offs (docs/absorbers.md, "Located
+   touchdown and lift-off") on the four landers on the memory law — the slope
+   and hop landers' damped memory-law versions (``studies/lander_slope_memory.toml``,
+   ``studies/lander_hop_memory.toml``), the tutorial lander and the lunar
+   lander — with either slip rule: the final position and the trajectory
+   (largest distance over the times every run shares), over the travel, at
+   Δt = 4 … 0.125 ms against a 31.25-µs run, and their fitted orders.
 
 Output: the tables on stdout. Run: ``python studies/absorbers.py``.
 """
@@ -41,6 +48,13 @@ ORDER_STEPS = (2e-3, 1e-3, 5e-4, 2.5e-4)
 REFERENCE_STEP = 3.125e-5
 #: Damping times of the sweep (s).
 DAMPING_TIMES = (0.0, 1e-3, 2e-3, 3.5e-3, 6e-3)
+#: The four landers of the event orders (question 5): file and duration (s).
+EVENT_LANDERS = (("slope", HERE / "lander_slope_memory.toml", 0.8),
+                 ("hop", HERE / "lander_hop_memory.toml", 0.6),
+                 ("tutorial", TUTORIAL, 1.0),
+                 ("lunar", LUNAR, 2.0))
+#: Steps of the event orders (s): the coarsest is the trajectory's output grid.
+EVENT_STEPS = (4e-3, 2e-3, 1e-3, 5e-4, 2.5e-4, 1.25e-4)
 
 
 def rollout(scene, dt):
@@ -88,6 +102,44 @@ def final_order(scene):
     travel = np.linalg.norm(ref - initial_state(scene)[:3])
     errors = np.array([np.linalg.norm(final[dt] - ref) / travel for dt in ORDER_STEPS])
     return errors, float(np.polyfit(np.log(ORDER_STEPS), np.log(errors), 1)[0])
+
+
+def order_fit(steps, errors):
+    """The slope of log error against log Δt."""
+    return float(np.polyfit(np.log(steps), np.log(errors), 1)[0])
+
+
+def event_errors(scene, steps=EVENT_STEPS, reference=REFERENCE_STEP):
+    """Errors over the travel of the final position and of the trajectory (the largest
+    distance at the times of the coarsest step) against a run at ``reference``."""
+    xl = state_layout(len(scene.legs))
+    ref = xl.get(rollout(scene, reference)[0], "position")
+    travel = np.linalg.norm(ref[:, -1] - initial_state(scene)[:3])
+    every = int(round(steps[0] / reference))
+    final, path = [], []
+    for dt in steps:
+        pos = xl.get(rollout(scene, dt)[0], "position")
+        k = int(round(steps[0] / dt))
+        final.append(np.linalg.norm(pos[:, -1] - ref[:, -1]) / travel)
+        path.append(np.max(np.linalg.norm(pos[:, k - 1::k] - ref[:, every - 1::every], axis=0))
+                    / travel)
+    return np.array(final), np.array(path)
+
+
+def event_orders():
+    print("\nevents on the memory law: error over the travel (final | trajectory) at 1 ms,"
+          " fitted order over Δt = 4 … 0.125 ms")
+    print("  lander     slip       final @1ms   order   trajectory @1ms   order")
+    for name, path, duration in EVENT_LANDERS:
+        scene = load_scene(path).with_(hysteresis="memory", duration=duration)
+        for slip in ("midpoint", "backward"):
+            final, traj = event_errors(scene.with_(slip=slip))
+            one = EVENT_STEPS.index(1e-3)
+            print(f"  {name:9s}  {slip:9s}  {100 * final[one]:9.3f} %  "
+                  f"{order_fit(EVENT_STEPS, final):6.2f}   {100 * traj[one]:12.3f} %  "
+                  f"{order_fit(EVENT_STEPS, traj):6.2f}")
+            print("      by Δt: " + " ".join(f"{e:.2e}" for e in final) + " | "
+                  + " ".join(f"{e:.2e}" for e in traj))
 
 
 def with_damping_time(tau, hinges=True):
@@ -143,6 +195,7 @@ def main():
         errors, order = final_order(scene)
         print(f"  {name:16s} " + "".join(f"{e:12.2e}" for e in errors) + f"   {order:5.2f}")
     damping_sweep()
+    event_orders()
 
 
 if __name__ == "__main__":

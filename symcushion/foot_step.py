@@ -10,9 +10,12 @@ midpoint slip rule of ``symcushion.contact_midpoint`` with the start force
 carried into the frame of the end of the step, and, with ``events =
 "branch"`` or ``"lock"`` (a leg that is not locked), the contact step split
 at a located branch switch of the axial absorber (``symcushion.branch_switch``)
-in a call that runs only where a switch is possible. It returns each foot's
-end pose, end force and what the
-touchdown step needs to kick the body.
+in a call that runs only where a switch is possible. On the memory law
+(``symcushion.absorber``) it locates a touchdown, a lift-off and a crush
+onset inside the step and returns the kick's correction for each
+(docs/absorbers.md, "Located touchdown and lift-off"). It returns each
+foot's end pose, end force and what the touchdown step needs to kick the
+body.
 
 It must not move the body (the kicks, the drift and the stroke lock's
 solves are ``symcushion.touchdown``'s), change the contact step or the force
@@ -32,7 +35,14 @@ from .quaternion import quat_exp, quat_mul, quat_to_rot
 from .obstacles import Plane, closest_obstacle
 from .stroke_lock import axial_branches, skip_unless
 
-__all__ = ["StepPoses", "LegInput", "FeetStep"]
+__all__ = ["StepPoses", "LegInput", "FeetStep", "MIN_CONTACT_FRACTION"]
+
+#: The shortest part of a step over which a foot that touches down inside it is
+#: taken to be in contact (of Δt), for the dampers' rate over that part: it keeps
+#: the damper's step stiffness c/((1 − θ)Δt) finite when the foot touches at the
+#: very end of a step; 1e-3 keeps it below 1e3 times the whole step's, far from
+#: round-off, and is reached only by feet that touch in the step's last 0.1 %.
+MIN_CONTACT_FRACTION = 1e-3
 
 
 def turned(v, a, b):
@@ -123,11 +133,12 @@ class FeetStep:
         self.kin_mid = dict(R=quat_to_rot(quat_mid / ca.norm_2(quat_mid)), v=P.vel_h,
                             omega=P.omega_h)
 
-    def contact_from(self, leg: LegInput, rho_s, r_s, pos_e, R_e, rate_of, R_s):
+    def contact_from(self, leg: LegInput, rho_s, r_s, pos_e, R_e, rate_of, R_s, span=None):
         """The contact step of ``leg``'s foot from ``rho_s`` (body frame) at the world
         point ``r_s``, the body going from attitude ``R_s`` to the pose (``pos_e``,
-        ``R_e``); ``rate_of(l)`` is the rate that selects the branches. Returns the
-        step's outputs, l, n_b, the world normal and the rate."""
+        ``R_e``); ``rate_of(l)`` is the rate that selects the branches; ``span``: the
+        dampers' rate over a touchdown's part of the step (:meth:`damper_rate`).
+        Returns the step's outputs, l, n_b, the world normal and the rate."""
         scene, mu, friction = self.scene, self.mu, self.friction
         fns, p_leg = leg.fns, leg.p_leg
         pad = leg.pad
@@ -140,7 +151,7 @@ class FeetStep:
             P0 = fns["strut_force"](rho_s, v_rel, p_leg)
             Dp = fns["strut_stiffness"](rho_s, v_rel, p_leg)
         else:
-            rate = self.damper_rate(leg, rho_s)
+            rate = self.damper_rate(leg, rho_s, span)
             P0, Dp = self.memory_linearisation(leg, rho_s, l, rate)
         out = contact_step_call(scene.method, P0, Dp, n_b, l, mu, u0, friction=friction)
         if scene.tangent_plane == "end" or leg.sets is not None:
@@ -161,15 +172,54 @@ class FeetStep:
         if scene.slip == "midpoint" and friction:
             # second-order slip direction (symcushion.contact_midpoint); μ = 0 has none.
             # The start force turns with the body into the frame of the end.
-            out = midpoint_slip_call(P0, Dp, n_b, l, mu, out, R_e.T @ R_s - ca.DM.eye(3))
+            turn = R_e.T @ R_s - ca.DM.eye(3)
+            if leg.sets is None:
+                out = midpoint_slip_call(P0, Dp, n_b, l, mu, out, turn)
+            else:
+                out = self.memory_midpoint(leg, P0, Dp, n_b, l, out, turn)
         return out, l, n_b, normal_w, v_rel
 
-    def damper_rate(self, leg: LegInput, rho_s):
-        """(a, b) of the dampers' end rate a·δ_S + b by (A3), from the foot ρ_s at
-        the start of the step and the previous step's mean rate."""
+    def memory_midpoint(self, leg: LegInput, P0, Dp, n_b, l, out, turn):
+        """The midpoint slip rule (M1) of a leg on the memory law, its trial path
+        started at the foot's own start force.
+
+        The rule weighs the slip direction between the force at the start of the
+        slip and the end force, and takes the start from its trial path P₀ + α D_p l
+        at α = 0. On the memory law P₀ is the offset of the law linearised about
+        the end foot with the dampers' end rate (A3): it is not the start force,
+        and differs from it by the dampers' c(ẋ₁ − ẋ₀), O(1) in the step; a
+        sliding damped foot then slips along an O(1)-wrong mean direction, first
+        order over a slide. A foot in contact at the start has its stored force
+        F₀: the path is moved to start there, P₀ ← F₀ and l ← l + D_p⁻¹(P₀ − F₀),
+        which keeps the trial end force P₀ + D_p l and so the backward-Euler
+        step's outputs; the foot's δ is l − g of the original l.
+        """
+        F0 = leg.foot["force_body"]
+        in_contact = leg.foot["contact"] > 0.5
+        start = ca.if_else(in_contact, F0, P0)
+        l_start = ca.if_else(in_contact, l + ca.solve(Dp, P0 - F0), l)
+        got = midpoint_slip_call(start, Dp, n_b, l_start, self.mu, out, turn)
+        got["delta"] = ca.if_else(got["contact"] > 0.5, l - got["k"], got["delta"])
+        return got
+
+    def damper_rate(self, leg: LegInput, rho_s, span=None):
+        """(a, b) of the dampers' end rate a·x + b by (A3), from the foot ρ_s at the
+        start of the step and the previous step's mean rate.
+
+        ``span`` = (touching, h_c): where ``touching`` is set the foot touched down
+        inside the step and has been in contact for h_c only; its rate is then the
+        mean rate over that part, (x − x₀)/h_c. The two-step difference (A3) would
+        spread the contact's motion over the whole step and the previous free
+        step's rate, and carry an O(1) error into the end force at every touchdown
+        behind a damper (docs/absorbers.md, "Located touchdown and lift-off").
+        """
         x0 = leg.fns["strut_deflections"](rho_s, leg.p_leg)    # δ_S, β, γ − γ₀ at the start
         h = self.poses.h
-        return 1.5 / h, -1.5 * x0 / h - 0.5 * leg.chords                # (A3)
+        a, b = 1.5 / h, -1.5 * x0 / h - 0.5 * leg.chords               # (A3)
+        if span is None:
+            return a, b
+        touching, h_c = span
+        return ca.if_else(touching, 1 / h_c, a), ca.if_else(touching, -x0 / h_c, b)
 
     @staticmethod
     def memory_linearisation(leg: LegInput, rho_s, d, rate):
@@ -187,6 +237,96 @@ class FeetStep:
         rho_d = rho_s + d
         Dp = fns["strut_stiffness_memory"](rho_d, s0, p_leg, *rate, rho_d)
         return fns["strut_force_memory"](rho_d, s0, p_leg, *rate) - Dp @ d, Dp
+
+    def event_kick(self, leg: LegInput, at: dict):
+        """The kick's correction for a foot on the memory law that touches down or
+        lifts off inside the step (docs/absorbers.md, "Located touchdown and
+        lift-off"): (force, torque), N in world axes and N·m in body axes, whose
+        impulse h·force the second half kick adds.
+
+        Velocity Verlet takes the impulse of a leg's force over a step as
+        h(F₀ + F₁)/2. A foot that touches at θ (``at["theta"]``, from its free
+        gap) carries no force before θh, and behind a damper its force jumps at θh
+        to F*, the force of the end rates with the foot where it touched; the
+        impulse is (1 − θ)h(F* + F₁)/2. A foot that lifts off carries its force to
+        zero at θ_off = N₀/(N₀ − N₁), N₁ the normal force it would have at the
+        end held where it was (its end force, exact on the law at the stuck foot);
+        the impulse is θ_off h F₀/2. Where the force jumps (behind a damper) these
+        differ from Verlet's by O(h) once per event, first order; where it does not,
+        by O(h²) with a constant that changes with θ. A crush onset inside the step
+        adds :meth:`kink_kick`.
+        """
+        P, fns, p_leg = self.poses, leg.fns, leg.p_leg
+        rho_s, n_b, stays = at["rho_s"], at["n_b"], at["stays"]
+        theta, (touching, _) = at["theta"], at["span"]
+        F0 = leg.foot["force_body"]
+        # touchdown: the force jumps to F* at θ; F* has the end rates at the touch foot
+        a, b = self.damper_rate(leg, rho_s, at["span"])
+        rate_end = a * fns["strut_deflections"](at["rho1"], p_leg) + b
+        F_star = self.in_cone(fns["strut_force_memory"](rho_s, leg.sets, p_leg, 0.0, rate_end),
+                              n_b)
+        down = ca.logic_and(touching, stays)
+        w_star = ca.if_else(down, (1 - theta) / 2, 0.0)
+        w_end = ca.if_else(down, -theta / 2, 0.0)
+        # lift-off: the normal force held at the stuck foot crosses zero at θ_off
+        stuck = fns["strut_force_memory"](rho_s + at["l"], leg.sets, p_leg,
+                                          *self.damper_rate(leg, rho_s))
+        N0, N1 = ca.dot(n_b, F0), ca.dot(n_b, stuck)
+        crosses = N0 * N1 < 0
+        theta_off = ca.if_else(crosses, N0 / ca.if_else(crosses, N0 - N1, 1.0), 1.0)
+        off = ca.logic_and(leg.foot["contact"] > 0.5, ca.logic_not(stays))
+        w_start = ca.if_else(off, -(1 - theta_off) / 2, 0.0)
+        end = w_star * F_star + w_end * at["P1"]
+        if "strut_crush_curve" in fns:
+            end = end + self.kink_kick(leg, at)
+        force = P.R1 @ end + w_start * (P.R @ F0)
+        torque = ca.cross(at["rho1"], end) + w_start * ca.cross(rho_s, F0)
+        return force, torque
+
+    def in_cone(self, F, n):
+        """``F`` with its tangential part cut to the friction cone μ·max(n·F, 0) (1.4):
+        the force a foot can carry at the instant it touches, sliding where a damper
+        asks for more (at that instant its normal force is the elastic one's, zero
+        for a foot that lands on a crushable's elastic rise)."""
+        N = ca.fmax(ca.dot(n, F), 0.0)
+        tangential = F - ca.dot(n, F) * n
+        size = ca.norm_2(tangential)
+        bound = self.mu * N
+        scale = ca.if_else(size > bound, bound / ca.if_else(size > 0, size, 1.0), 1.0)
+        return N * n + scale * tangential
+
+    def kink_kick(self, leg: LegInput, at: dict):
+        """The kick's correction (N, body axes of the end, times h) for the bend of the
+        axial element's loading curve inside the step while it crushes along it: the
+        onset of crushing, where the honeycomb's elastic rise meets its plateau
+        (docs/absorbers.md, "Located touchdown and lift-off").
+
+        Along the step the force follows the curve's two lines, slope k₀ at the
+        start stroke x₀ and k₁ at the end stroke x₁; they meet at x_k, at
+        θ = (x_k − x₀)/(x₁ − x₀) of the part of the step in contact, h_c. The
+        trapezoid rule's impulse misses h_c θ(1 − θ)(k₀ − k₁)(x₁ − x₀)/2 there:
+        O(h²) once, but with the honeycomb's k·v in it (2e6 N/s on the tutorial
+        lander: 7e-3 m/s at Δt = 1 ms), and changing with where the bend falls
+        in the step. Taken where the element crushed in the step (its set moved),
+        so that its force followed the curve.
+        """
+        fns, p_leg = leg.fns, leg.p_leg
+        touching, h_c = at["span"]
+        x0 = fns["strut_deflections"](at["rho_s"], p_leg)[0]
+        x1 = fns["strut_deflections"](at["rho1"], p_leg)[0]
+        f0, k0 = fns["strut_crush_curve"](x0, p_leg)
+        f1, k1 = fns["strut_crush_curve"](x1, p_leg)
+        dx, dk = x1 - x0, k0 - k1
+        bends = ca.logic_and(ca.fabs(dk) > 0, ca.fabs(dx) > 0)
+        x_k = (f1 - f0 + k0 * x0 - k1 * x1) / ca.if_else(bends, dk, 1.0)
+        theta = (x_k - x0) / ca.if_else(bends, dx, 1.0)
+        inside = ca.logic_and(ca.logic_and(bends, theta > 0), theta < 1)
+        held = ca.logic_and(at["stays"], ca.logic_or(leg.foot["contact"] > 0.5, touching))
+        crushed = ca.fabs(at["sets_end"][0] - leg.sets[0]) > 0
+        kink = ca.logic_and(ca.logic_and(inside, held), crushed)
+        share = ca.if_else(touching, h_c, self.poses.h) / self.poses.h
+        e_S = fns["strut_geometry"].call(dict(r=at["rho1"]))["e_S"]
+        return ca.if_else(kink, share * theta * (1 - theta) * dk * dx / 2, 0.0) * e_S
 
     def on_surface(self, rho, delta, pos_e, R_e, pad=0.0):
         """The foot ρ + δ at the pose (pos_e, R_e) put on the obstacle (its offset surface
@@ -253,6 +393,11 @@ class FeetStep:
         _, _, touch = closest_obstacle(scene.obstacles, free0 + tau * (free1 - free0), leg.pad)
         touches = d1 < 0
         active = ca.logic_or(in_contact, touches)
+        span = None
+        if leg.sets is not None:
+            # a touchdown at θ = tau: in contact over the step's last (1 − θ)h only
+            touching = ca.logic_and(ca.logic_not(in_contact), touches)
+            span = (touching, h * ca.fmax(1 - tau, MIN_CONTACT_FRACTION))
 
         r_s = ca.if_else(in_contact, foot["foot"], touch)        # world point of the plane
         rho_s = leg.rho0                                         # foot, body frame
@@ -265,7 +410,7 @@ class FeetStep:
             return v_rel
 
         out, l, n_b, normal_w, v_rel = self.contact_from(leg, rho_s, r_s, P.pos1, P.R1,
-                                                         chord_rate, P.R)
+                                                         chord_rate, P.R, span)
         rho_last, split, l_whole = rho_s, None, l
         if scene.events in ("branch", "lock") and locates_switch(leg.strut):
             # the split step, in a call that runs only where the foot is in contact and
@@ -315,14 +460,19 @@ class FeetStep:
         if sets is not None:
             # the end force and sets of the memory law at the end foot (A1)-(A3): a stroke
             # grows only at its loading curve's force, whatever the foot did
-            fns, rate = leg.fns, self.damper_rate(leg, rho_s)
+            fns, rate = leg.fns, self.damper_rate(leg, rho_s, span)
             P1 = ca.if_else(stays, fns["strut_force_memory"](rho1, sets, leg.p_leg, *rate),
                             ca.DM.zeros(3))
             sets_end = fns["strut_next_set"](rho1, sets, leg.p_leg, *rate)
+            events = self.event_kick(leg, dict(rho_s=rho_s, l=l, n_b=n_b, rho1=rho1, P1=P1,
+                                               stays=stays, theta=tau, span=span,
+                                               sets_end=sets_end))
             # the mean rates of the elastic deflections x − s, which (A3) of the next step
-            # reads (for an element that keeps no set, of x)
+            # reads (for an element that keeps no set, of x); after a touchdown, over
+            # the part of the step in contact
             moved = ((fns["strut_deflections"](rho1, leg.p_leg) - sets_end)
-                     - (fns["strut_deflections"](rho_s, leg.p_leg) - sets)) / h
+                     - (fns["strut_deflections"](rho_s, leg.p_leg) - sets)) / ca.if_else(
+                         span[0], span[1], h)
             sets = sets_end
             # a free foot's elements that do not relax (a strut's hinge angles) return to
             # rest at once: no rate to carry
@@ -330,4 +480,4 @@ class FeetStep:
         return dict(in_contact=in_contact, active=active, stays=stays, rho_s=rho_s, r_s=r_s,
                     l=l, n_b=n_b, v_rel=v_rel, normal_w=normal_end, out=out, rho1=rho1,
                     foot_w=foot_w, P1=P1, locked=ca.SX(0), split=split, l_whole=l_whole,
-                    sets=sets, chords=chords)
+                    sets=sets, chords=chords, events=events if leg.sets is not None else None)

@@ -57,7 +57,7 @@ def memory_functions_of(leg, geometry: str = "constant") -> dict[str, ca.Functio
     Dp = ca.jacobian(leg.memory_force_expr(r, sets, p, r_regime, rate), r)
     x0, rate0, dt = ca.SX.sym("deflection_start", 3), ca.SX.sym("mean_rate", 3), ca.SX.sym("dt")
     names = ["r", "sets", "p", "rate_gain", "rate_offset"]
-    return {
+    fns = {
         "strut_force_memory": ca.Function("strut_force_memory", [r, sets, p, *rate], [P],
                                           names, ["P"]),
         "strut_stiffness_memory": ca.Function("strut_stiffness_memory",
@@ -73,6 +73,14 @@ def memory_functions_of(leg, geometry: str = "constant") -> dict[str, ca.Functio
             [leg.free_foot_expr(sets, p, x0, rate0, dt)],
             ["sets", "p", "deflection_start", "mean_rate", "dt"], ["r"]),
     }
+    lower = getattr(leg, "axial_lower_bound_expr", None)
+    x = ca.SX.sym("x")
+    lo = lower(x, p) if lower is not None and leg.axial_memory else None
+    if lo is not None:
+        # the crush onset's kink inside a step (symcushion.foot_step.FeetStep.kink_kick)
+        fns["strut_crush_curve"] = ca.Function(
+            "strut_crush_curve", [x, p], [lo, ca.jacobian(lo, x)], ["x", "p"], ["f", "slope"])
+    return fns
 
 
 class bound_geometry:

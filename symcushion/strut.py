@@ -98,6 +98,11 @@ RIGID_AXIAL_RATIO = 1e3
 #: docs/paper-notes.md §2). 1° keeps |e_S × e_n| and |e_S·e_n| above 0.017 at rest.
 SINGULAR_ANGLE = np.deg2rad(1.0)
 
+#: Newton steps that put a free foot where its relaxed deflections meet: it starts
+#: from the foot with the hinges at rest, a few mrad away, and the map from the foot
+#: to (δ_S, β, γ) is smooth there, so three steps reach round-off.
+FREE_FOOT_NEWTON_STEPS = 3
+
 
 def _vector(name, value, *, unit=False):
     return direction(name, value) if unit else vector(name, value, (3,))
@@ -479,15 +484,40 @@ class HingedStrut:
                                                None if rate is None else (rate[0], rate[1][k]))
         return ca.vertcat(*out)
 
+    def axial_lower_bound_expr(self, x, p):
+        """lo(x) of (A1) for the axial element, the loading curve it crushes along (N),
+        or None where its band has no lower bound."""
+        el = self._axial()
+        lo, _ = absorber.band(el.curve, x, self._theta(el, p))
+        return lo
+
     def free_foot_expr(self, sets, p, x_start, mean_rate, dt):
         """A free foot at the end of a step (body frame): along e₀ at the axial
-        element's free stroke, or relaxing towards it behind a damper (A4); the
-        hinge angles at rest."""
+        element's free stroke, or relaxing towards it behind a damper (A4); a
+        damped hinge spring's angle relaxes by (A4) too, an undamped one is at
+        rest. With a damped hinge the foot is where the three deflections meet,
+        by Newton's method from the foot with the hinges at rest."""
         el = self._axial()
         free = absorber.relaxed_deflection(el.curve, x_start[0], sets[0], mean_rate[0], dt,
                                            self._theta(el, p))
         G = self._geometry_of(p)
-        return G["hinge"] + (G["length"] + free) * G["e0"]
+        foot = G["hinge"] + (G["length"] + free) * G["e0"]
+        hinges = [e for e in self.elements if e.name != "S" and e.curve.has_damper]
+        if not hinges:
+            return foot
+        # a massless foot whose hinge damper snapped it back to rest at lift-off would
+        # jump by the bending deflection the damper held, often into the ground
+        target = [free, 0.0, 0.0]
+        for e in hinges:
+            k = _ELEMENT_ORDER.index(e.name)
+            target[k] = absorber.relaxed_deflection(e.curve, x_start[k], sets[k],
+                                                    mean_rate[k], dt, self._theta(e, p))
+        r = ca.SX.sym("r", 3)
+        q = self.deflections_expr(r, p)
+        newton = r - ca.solve(ca.jacobian(q, r), q - ca.vertcat(*target))
+        for _ in range(FREE_FOOT_NEWTON_STEPS):
+            foot = ca.substitute(newton, r, foot)
+        return foot
 
     def memory_functions(self, geometry: str = "constant") -> dict[str, ca.Function]:
         """The named Functions of the memory law (A1)-(A4) for a leg that keeps a set
@@ -591,9 +621,13 @@ class HingedStrut:
     axial_element = "S"
     #: The fields of the strut's geometry block in ``p`` (``symcushion.layout``).
     geometry_fields = LEG_GEOMETRY_FIELDS
-    #: Which elements' deflections a free foot relaxes over a step (A4); the hinge
-    #: angles return to rest at once.
-    relaxes_free = (1.0, 0.0, 0.0)
+    @property
+    def relaxes_free(self) -> tuple:
+        """Which elements' deflections a free foot relaxes over a step (A4): the axial
+        element's, and a hinge spring's that has a damper; the others return to rest
+        at once."""
+        damped = {e.name: e.curve.has_damper for e in self.elements}
+        return (1.0, float(damped.get("M_beta", False)), float(damped.get("M_gamma", False)))
 
     def deflections(self, geo) -> dict:
         """Each element's own deflection from ``strut_geometry``'s outputs ``geo``:

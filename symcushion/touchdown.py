@@ -60,6 +60,9 @@ contact law is non-smooth, so the measured order is stated by the tests
 inside a step is located by linear interpolation of the distance; the force
 at the end of that step is exact for a plane, and the impulse over the step is
 integrated by the trapezoid rule, an O(h²) local error once per touchdown.
+On the memory law the second half kick also carries each leg's located
+touchdown, lift-off and crush onset (``FeetStep.event_kick``), and the leg's
+axial work output books that kick's work.
 
 Stability: the body update is explicit in velocity, so a stiff leg limits the
 step to ω_max Δt < 2, ω_max² the largest eigenvalue of M⁻¹K (M the body's
@@ -585,6 +588,10 @@ def build_model(scene: Scene, geometry: str = "input") -> StepModel:
         new_feet.append(dict(foot=foot_w, contact=contact, force_body=P1,
                              **(_memory_state(r) if memory[j]
                                 else {f: feet[j][f] for f in MEMORY_FIELDS})))
+        if r.get("events") is not None:
+            # a touchdown or lift-off located inside the step (memory law, FeetStep.event_kick)
+            switch_force, switch_torque = switch_force + r["events"][0], \
+                switch_torque + r["events"][1]
         if scene.events in ("branch", "lock") and locates_switch(leg):
             # the kick at the located loading/unloading switch (symcushion.branch_switch)
             dF, dT, _ = branch_switch_kick(
@@ -608,9 +615,18 @@ def build_model(scene: Scene, geometry: str = "input") -> StepModel:
                                                                  feet[j]["foot"], r["r_s"])),
                                        dict(rho=rho1, P=P1, R=R1, foot=foot_w), stays)))
 
-    # 4. second half kick: the located switches' correction (B1)
+    # 4. second half kick: the located switches' correction (B1), and the located
+    # touchdowns' and lift-offs' of the legs on the memory law
+    vel_plain, omega_plain = vel1, omega1
     vel1 = vel1 + h * switch_force / m
     omega1 = omega1 + h * (inertia_inv @ switch_torque)
+    for j, r in enumerate(res):
+        if r.get("events") is not None:
+            # the located events' kick changes the body's energy by the mean velocity times
+            # its impulse, exactly: the leg took that much less (its axial work)
+            outputs[j]["work_axial"] = outputs[j]["work_axial"] - h * (
+                ca.dot((vel_plain + vel1) / 2, r["events"][0])
+                + ca.dot((omega_plain + omega1) / 2, r["events"][1]))
 
     x_next = xl.pack(position=pos1, velocity=vel1, attitude=quat1, angular_velocity=omega1,
                      **{f: [foot[f] for foot in new_feet]

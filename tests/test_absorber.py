@@ -211,13 +211,15 @@ def test_the_damped_lander_comes_to_rest_without_chatter():
 
 
 # -- 1-DOF drops against closed forms ------------------------------------------
-def _drop(S, duration, dt, x0=None):
+def _drop(S, duration, dt, x0=None, gap=0.0):
     """A 33.3-kg body on one vertical leg (axial element ``S``), gravity off, its foot on
-    the ground at t = 0 and 2 m/s down: states (columns are steps) and the scene."""
+    the ground at t = 0 (or ``gap`` m above it) and 2 m/s down: states (columns are
+    steps) and the scene."""
     data = read_toml(STUDIES / "tutorial" / "leg_design.toml")
     data = {k: data[k] for k in ("scene", "body", "leg", "obstacle")}
     data["scene"].update(hysteresis="memory", duration=duration, dt=dt)
     data["leg"][0]["S"] = S
+    data["body"]["position"] = list(np.add(data["body"]["position"], [0.0, 0.0, gap]))
     scene = scene_from_dict(data)
     model = build_model(scene)
     start = initial_state(scene) if x0 is None else x0
@@ -242,19 +244,79 @@ def test_a_mass_on_a_viscous_damper_stops_as_the_exponential_says():
 
 
 def test_an_orifice_damper_stops_as_the_logarithm_says():
-    """m ẍ = −c₂ ẋ|ẋ|: x(t) = (m/c₂) ln(1 + c₂ v₀ t/m), to 0.1 % of the stroke at
-    Δt = 0.1 ms. It converges at first order (0.9 % at 1 ms): the damper's force jumps
-    to c₂v₀² at touchdown, and the step's first kick starts from the free foot's zero
-    (docs/absorbers.md, "Open")."""
+    """m ẍ = −c₂ ẋ|ẋ|: x(t) = (m/c₂) ln(1 + c₂ v₀ t/m). The damper's force jumps to c₂v₀²
+    at touchdown; the kick carries that jump over the part of the step in contact
+    (docs/absorbers.md, "Located touchdown and lift-off"): 0.016 % of the stroke at
+    1 ms, second order (it was 0.9 %, first order)."""
     c2, errors = 400.0, []
-    for dt in (2e-4, 1e-4):
+    for dt in (1e-3, 5e-4):
         X, scene = _drop({"type": "linear", "stiffness": 0.0, "orifice": c2}, 0.2, dt)
         t = dt * np.arange(1, X.shape[1] + 1)
         z = state_layout(1).get(X, "position")[2]
         stroke = MASS / c2 * np.log1p(c2 * SPEED * t / MASS)
         errors.append(np.max(np.abs(scene.body.position[2] - z - stroke)) / stroke[-1])
-    assert errors[1] < 1e-3, errors
-    assert 1.8 < errors[0] / errors[1] < 2.2, errors    # first order, as documented
+    assert errors[0] < 3e-4, errors
+    assert errors[0] / errors[1] > 3.5, errors          # second order
+
+
+def test_a_touchdown_inside_a_step_carries_the_dampers_jump_from_where_it_touched():
+    """The foot 1.23 mm above the ground at 2 m/s touches 0.615 ms into the run, at a
+    different place in the step for every Δt; the orifice's force jumps there. Within
+    1e-4 of the stroke at Δt = 1, 0.5 and 0.25 ms (the kick that started the jump at
+    the step's start, or at its middle, was 1.9e-3 off at 1 ms)."""
+    c2, gap = 400.0, 1.23e-3
+    t0 = gap / SPEED
+    for dt in (1e-3, 5e-4, 2.5e-4):
+        X, scene = _drop({"type": "linear", "stiffness": 0.0, "orifice": c2}, 0.2, dt,
+                         gap=gap)
+        t = dt * np.arange(1, X.shape[1] + 1)
+        z = state_layout(1).get(X, "position")[2]
+        stroke = MASS / c2 * np.log1p(c2 * SPEED * np.maximum(t - t0, 0.0) / MASS)
+        exact = scene.body.position[2] - SPEED * np.minimum(t, t0) - stroke
+        assert np.max(np.abs(z - exact)) / stroke[-1] < 1e-4, dt
+
+
+def test_the_kick_carries_the_crush_onset_inside_a_step():
+    """A damped honeycomb with a flat plateau crushes along its loading curve from
+    touchdown (the damper on its elastic line is clipped to it, (A5)): the velocity is
+    v₀ cos ωt up to the crush onset at x_c = F_c/k, then falls at F_c/m. The onset
+    bends the force inside a step; the trapezoid rule misses h²θ(1 − θ)kv/2 there
+    (7e-3 m/s at 1 ms). With the bend located, the velocity at 20 ms is within 1e-4
+    m/s at Δt = 2, 1, 0.5 and 0.25 ms."""
+    k, F_c, c, gap = 1e6, 2000.0, 3500.0, 1.23e-3
+    S = {"type": "crushable", "stiffness": k, "crush_force": F_c, "plateau_slope": 0.0,
+         "damping": c}
+    omega = np.sqrt(k / MASS)
+    t_c = gap / SPEED + np.arcsin(F_c / k * omega / SPEED) / omega
+    v_c = SPEED * np.cos(omega * (t_c - gap / SPEED))
+    T = 0.02
+    exact = -(v_c - F_c / MASS * (T - t_c))
+    for dt in (2e-3, 1e-3, 5e-4, 2.5e-4):
+        X, _ = _drop(S, T, dt, gap=gap)
+        assert abs(state_layout(1).get(X, "velocity")[2, -1] - exact) < 1e-4, dt
+
+
+def test_a_free_foots_damped_hinges_relax_instead_of_snapping_back():
+    """A free foot's damped hinge angle relaxes by (A4) like its axial element, and an
+    undamped one is at rest at once: at lift-off the foot does not jump by the bending
+    deflection its dampers held (which put the damped lander's rocking feet back into
+    the ground)."""
+    from symcushion.strut import HingedStrut
+    kw = dict(hinge=(0, 0, 0), e0=(0.3, 0, -1), en=(-0.4, 0.1, -1), length=0.8,
+              S=Crushable(**HONEYCOMB, damping=350.0))
+    k, c, dt = 2e4, 70.0, 1e-3
+    x_start = [-0.01, 0.02, -0.015]
+    for damped in (True, False):
+        hinge = Linear(k, damping=c) if damped else Linear(k)
+        leg = HingedStrut(M_beta=hinge, M_gamma=Linear(3e4), **kw)
+        fns = leg.memory_functions()
+        foot = fns["strut_free_foot"]([0.0, 0.0, 0.0], [], x_start, [0.0, 0.0, 0.0], dt)
+        x = np.asarray(fns["strut_deflections"](foot, [])).ravel()
+        axial = float(absorber.relaxed_deflection(leg.elements[0].curve, x_start[0], 0.0,
+                                                  0.0, dt))
+        beta = 1.5 * c / dt * x_start[1] / (k + 1.5 * c / dt) if damped else 0.0   # (A4)
+        np.testing.assert_allclose(x, [axial, beta, 0.0], atol=1e-12)
+        assert leg.relaxes_free == (1.0, 1.0 if damped else 0.0, 0.0)
 
 
 def test_a_honeycomb_dropped_twice_crushes_twice_and_rebounds_from_its_elastic_line():
@@ -428,8 +490,7 @@ def test_hinge_dampers_keep_a_sliding_damped_foot_on_the_ground():
     the foot slides on the ground (docs/absorbers.md, "Dampers on every element")."""
     data = read_toml(STUDIES / "lander_damped.toml")
     # leg 0 points downhill and slides: it leaves the ground once as the body rocks onto
-    # the uphill legs, as at half the step (the uphill legs' grazing re-touches of their
-    # rocking are not counted here)
+    # the uphill legs, as at half the step
     damped = _liftoffs(data)
     assert damped[0] <= 1 and damped[0] == _liftoffs(data, dt=5e-4)[0], damped
     for name in ("M_beta", "M_gamma"):
@@ -464,3 +525,54 @@ def test_hinge_dampers_need_the_memory_law():
     del data["legs"]["S"]["damping"]
     with pytest.raises(ValueError, match="`M_beta` has a damper.*hysteresis = 'memory'"):
         scene_from_dict(data)
+
+
+def test_the_damped_landers_rocking_feet_leave_the_ground_once_and_it_converges():
+    """The damped lander rocks onto its uphill legs and back: each foot leaves the ground
+    once in its first second at Δt = 1 and 0.5 ms (a foot whose hinges snapped back to
+    rest at lift-off landed again in the next step: 2 and 4 lift-offs of the uphill
+    feet). Its final position at 1 ms is within 0.1 % of its travel of a 62.5-µs run
+    (0.17 % before the hinges relaxed and the events were located; docs/absorbers.md,
+    "Located touchdown and lift-off")."""
+    scene = load_scene(STUDIES / "lander_damped.toml")
+    xl = state_layout(3)
+    final = {}
+    for dt in (1e-3, 5e-4, 6.25e-5):
+        model = build_model(scene.with_(dt=dt))
+        X, _ = model.rollout(int(round(scene.duration / dt)))(initial_state(scene),
+                                                                model.default_p, dt)
+        X = np.asarray(X)
+        final[dt] = xl.get(X, "position")[:, -1]
+        if dt >= 5e-4:
+            contact = xl.legs(X, "contact") > 0.5
+            assert np.all(np.sum(np.diff(contact.astype(int), axis=1) < 0, axis=1) == 1), dt
+    travel = np.linalg.norm(final[6.25e-5] - scene.body.position)
+    assert np.linalg.norm(final[1e-3] - final[6.25e-5]) < 1e-3 * travel
+
+
+def test_a_damped_sliding_foot_slips_at_second_order():
+    """The slope lander on the memory law (every element damped, τ = 10 ms) between
+    0.29 and 0.38 s: two feet slide, two are in the air, nothing crushes, touches or
+    lifts off. Restarted from a 31.25-µs run's state at 0.29 s, the error of the
+    velocities at 0.38 s fits order 1.79 over Δt = 2 … 0.25 ms, where it fitted 1.1
+    (first order) before the midpoint slip rule started from the foot's own start
+    force instead of the damped law's linearised offset (docs/absorbers.md, "Located
+    touchdown and lift-off"); it is not yet a clean second order."""
+    scene = load_scene(STUDIES / "lander_slope_memory.toml")
+    start, end, fine = 0.29, 0.38, 3.125e-5
+
+    def run(x0, dt, duration):
+        model = build_model(scene.with_(dt=dt))
+        X, _ = model.rollout(int(round(duration / dt)))(x0, model.default_p, dt)
+        return np.asarray(X)
+
+    X = run(initial_state(scene), fine, end)
+    x_start, x_end = X[:, int(round(start / fine)) - 1], X[:, -1]
+    xl, errors, steps = state_layout(4), [], (2e-3, 1e-3, 5e-4, 2.5e-4)
+    for dt in steps:
+        x = run(x_start, dt, end - start)[:, -1]
+        errors.append(np.linalg.norm(np.r_[xl.get(x, "velocity") - xl.get(x_end, "velocity"),
+                                           xl.get(x, "angular_velocity")
+                                           - xl.get(x_end, "angular_velocity")]))
+    order = np.polyfit(np.log(steps), np.log(errors), 1)[0]
+    assert order > 1.6, (order, errors)
