@@ -132,16 +132,19 @@ def main(argv=None):
     figs.mkdir(parents=True, exist_ok=True)
     conventions_figure(figs / "conventions.png")
     lander = HERE / "lander.toml"
-    assert cli(["simulate", str(lander), "--out", str(out), "--frames", str(GIF_FRAMES)]) == 0
+    assert cli(["simulate", str(lander), "--out", str(out), "--frames", str(GIF_FRAMES),
+                "--overwrite"]) == 0
     shutil.copyfile(out / "lander" / "summary.png", figs / "lander_summary.png")
     shutil.copyfile(out / "lander" / "animation.gif", figs / "lander.gif")
     traj = Trajectory.load(out / "lander")
     draw_frame(traj, load_scene(lander), figs / "lander_frame.png", time=0.06)
     design = out / "leg_design.json"
-    assert cli(["optimise", str(HERE / "leg_design.toml"), "--out", str(design)]) == 0
+    assert cli(["optimise", str(HERE / "leg_design.toml"), "--out", str(design),
+                "--overwrite"]) == 0
     design_figure(design, figs / "leg_design.png")
     envelope = out / "envelope"
-    assert cli(["envelope", str(HERE / "lander_envelope.toml"), "--out", str(envelope)]) == 0
+    assert cli(["envelope", str(HERE / "lander_envelope.toml"), "--out", str(envelope),
+                "--overwrite"]) == 0
     shutil.copyfile(envelope / "lander_envelope.png", figs / "lander_envelope.png")
     print(f"wrote the tutorial's pictures into {figs}")
 
