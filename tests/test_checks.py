@@ -248,13 +248,15 @@ def test_a_leg_whose_hinge_springs_cannot_hold_its_crush_force_is_warned():
     assert not [f for f in check_scene(stiff) if f.kind == "leg_buckles"]
 
 
-def test_the_warned_leg_lifts_off_inside_the_ground():
-    # what the warning is about: the downhill leg's contact step releases the foot while
-    # it is inside the slope (the run monitor's penetration finding)
+def test_the_warned_leg_is_released_at_the_ground_not_inside_it():
+    # what the warning is about: the contact step finds no compressive state for the
+    # straight leg and releases the downhill foot. Before lift-offs were located in the
+    # step (docs/absorbers.md) it did so 1.7 mm inside the slope; now the release is at
+    # the ground, and no step ends with a foot inside an obstacle
     weak = _tutorial_with_hinge_stiffness(1000.0).with_(duration=0.15)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         run = simulate(weak, estimate=False)
     lift = [e["time"] for e in run.info["events"] if e["kind"] == "lift-off" and e["leg"] == 0]
     inside = [w for w in run.info["warnings"] if "inside an obstacle" in w["message"]]
-    assert lift and inside and inside[0]["time"] == pytest.approx(lift[0])
+    assert lift == [pytest.approx(0.121)] and not inside
