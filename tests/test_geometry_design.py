@@ -1,4 +1,4 @@
-"""Leg geometry as design variables (docs/optimise.md, "Geometry as design variables").
+"""Leg geometry as design variables (docs/design-geometry.md).
 
 Both design problems: the geometry entries of ``p`` and the scenarios' initial
 states follow θ, the legs' own checks bound the geometry, the practical limits

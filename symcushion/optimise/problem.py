@@ -81,7 +81,7 @@ class DesignProblem(_DesignSpace, _Constraints, _GradientCheck):
         variable. An element not listed gets the default.
     geometry : sequence of GeometryVariable, optional
         The legs' geometry as design variables, after the curves' in θ
-        (docs/optimise.md, "Geometry as design variables").
+        (docs/design-geometry.md).
     practical : PracticalLimits, optional
         Footprint radius, leg mass proxy and ground clearance rows.
 

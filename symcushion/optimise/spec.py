@@ -40,7 +40,7 @@ class Scenario:
     clearance : float, optional
         Height of the lowest foot above the obstacle at which ``x0`` was
         placed (m). With geometry variables the body is placed again at this
-        clearance for every design (docs/optimise.md, "Geometry"); None keeps
+        clearance for every design (docs/design-geometry.md); None keeps
         the body where ``x0`` has it and only moves the feet to their rest poses.
     """
 

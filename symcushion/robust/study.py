@@ -167,7 +167,7 @@ def robust_study_from_dict(data: dict, source: str = "<dict>") -> RobustStudy:
 
 def _write_geometry(result, out_dir):
     """``geometry.json``: the legs' geometry at the start and the optimum, and the
-    practical-limit rows' values (docs/optimise.md, "Geometry as design variables")."""
+    practical-limit rows' values (docs/design-geometry.md)."""
     import json
     from pathlib import Path
 
