@@ -439,6 +439,11 @@ class _GeometryDesign:
                 footpad=G["footpad"], foot_radius=float(np.hypot(foot[0], foot[1])))
         return out
 
+    def curve_design(self, theta) -> dict:
+        """The curve variables of design θ by name (the geometry's left out)."""
+        return {name: float(value) for name, value, curve in
+                zip(self.var_names, np.asarray(theta, dtype=float), self._is_curve) if curve}
+
     def scene_at(self, theta, scene):
         """``scene`` with its legs rebuilt at the geometry of design θ (curves unchanged)."""
         if not self.designs_geometry:

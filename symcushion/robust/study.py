@@ -330,9 +330,8 @@ def _at_design(envelope: EnvelopeStudy, problem, result) -> tuple:
     """
     if not problem.designs_geometry:
         return envelope, result.design
-    curves = {k: v for k, v, is_curve in zip(result.var_names, result.theta,
-                                            problem._is_curve) if is_curve}
-    return envelope.with_(scene=problem.scene_at(result.theta, envelope.scene)), curves
+    return (envelope.with_(scene=problem.scene_at(result.theta, envelope.scene)),
+            problem.curve_design(result.theta))
 
 
 def _held_out(study: RobustStudy, at: tuple, env: dict, say, label: str) -> dict:
