@@ -576,3 +576,28 @@ def test_a_damped_sliding_foot_slips_at_second_order():
                                            - xl.get(x_end, "angular_velocity")]))
     order = np.polyfit(np.log(steps), np.log(errors), 1)[0]
     assert order > 1.6, (order, errors)
+
+
+def test_a_honeycomb_leg_that_hops_lands_again_on_its_kept_set():
+    """studies/honeycomb_bounce.toml: the leg gives back its elastic line's energy, the
+    body hops, and the second landing reloads along the elastic line from the set the
+    first one crushed, below the loading curve, so the set does not move."""
+    scene = load_scene(STUDIES / "honeycomb_bounce.toml")
+    model = build_model(scene)
+    X, Y = (np.asarray(a) for a in model.rollout(scene.steps)(initial_state(scene),
+                                                              model.default_p, scene.dt))
+    xl, yl = state_layout(1), output_layout(1)
+    contact = yl.get(Y, "in_contact", 0) > 0.5
+    edges = np.diff(np.r_[0, contact.astype(int), 0])
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1
+    assert len(starts) == 2                                 # two landings, one hop
+    sets = xl.get(X, "stroke_set", 0)
+    assert sets[ends[0]] < -0.1                             # the first crushes > 10 cm
+    np.testing.assert_allclose(sets[starts[1]:], sets[ends[0]], rtol=0, atol=1e-12)
+    compression = -yl.get(Y, "stroke", 0)
+    second = slice(starts[1], ends[1] + 1)
+    assert compression[second].max() < compression[:ends[0] + 1].max()
+    # free flight between the landings: the hop lasts 2 v/g of the lift-off speed
+    v_up = xl.get(X, "velocity")[2, ends[0]]
+    hop = (starts[1] - ends[0]) * scene.dt
+    assert abs(hop - 2 * v_up / 1.62) < 2.5 * scene.dt
