@@ -43,8 +43,9 @@ class StepStart:
     (geometry bound to ``p``), curve parameters, unloaded foot (body axes) and
     footpad radius; ``memory[j]``: leg j is on the memory law; ``lockable``:
     the legs whose stroke may lock (``events = "lock"``), and ``locked0[j]``
-    whether it is locked at the start, ``stored_loading[j]`` whether it
-    is on its loading curve (``contact`` below :data:`~symcushion.stroke_lock.UNLOADING`).
+    whether it is locked at the start, ``stored_loading[j]`` whether its
+    stored branch is the loading curve (``contact`` not
+    :data:`~symcushion.stroke_lock.UNLOADING`).
     """
 
     scene: Scene

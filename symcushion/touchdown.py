@@ -14,8 +14,9 @@ states live in :mod:`symcushion.touchdown_states` (re-exported here). The
 explicit stability limit of its body update lives in
 :mod:`symcushion.stability`; the driver that runs the step, with the
 paper's adaptive step criterion, and the trajectories it returns live in
-:mod:`symcushion.driver`. It must not run simulations nor compute any of
-the step's parts itself.
+:mod:`symcushion.driver`. It must not run simulations, nor compute the
+body's update, the event rules or the outputs itself.
+
 It receives the physics from elsewhere: the leg force P(r) and stiffness D_p
 from ``symcushion.strut``, the feet's contact steps over a step from
 ``symcushion.foot_step`` (which calls ``symcushion.contact``) and the
