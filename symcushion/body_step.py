@@ -20,7 +20,7 @@ import casadi as ca
 
 from .quaternion import quat_exp, quat_mul
 
-__all__ = ["BodyParams", "legs_wrench", "body_acceleration", "half_kick", "drift", "kick_drift"]
+__all__ = ["BodyParams", "legs_wrench", "body_acceleration", "half_kick", "drift", "Drift", "kick_drift"]
 
 
 class BodyParams(NamedTuple):
@@ -70,9 +70,18 @@ def drift(pos, quat, vel_h, omega_h, h):
     return pos1, quat1 / ca.norm_2(quat1)
 
 
-def kick_drift(body: BodyParams, start, force, torque, h):
+class Drift(NamedTuple):
+    """The body after the first half kick and the drift: v_h, ω_h, x', q'."""
+
+    vel_h: object
+    omega_h: object
+    pos1: object
+    quat1: object
+
+
+def kick_drift(body: BodyParams, start, force, torque, h) -> Drift:
     """The first half kick with the wrench (F, τ) from ``start`` = (x, v, q, ω, R), then
-    the drift: (v_h, ω_h, x', q')."""
+    the drift."""
     pos, vel, quat, omega, R = start
     vel_h, omega_h = half_kick(vel, omega, body_acceleration(body, R, force, torque, omega), h)
-    return (vel_h, omega_h) + drift(pos, quat, vel_h, omega_h, h)
+    return Drift(vel_h, omega_h, *drift(pos, quat, vel_h, omega_h, h))

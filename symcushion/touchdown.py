@@ -322,7 +322,8 @@ def build_model(scene: Scene, geometry: str = "input") -> StepModel:
         (vel1, omega1, acc1), lock_out, gated["touchdown_lock_hold"] = gated_lock_phase(
             s, drift, res, cand, end_loading)
     else:
-        (vel1, omega1, acc1), lock_out = second_kick(s, res, vel_h, omega_h, R1)[:3], {}
+        kick, lock_out = second_kick(s, res, vel_h, omega_h, R1), {}
+        vel1, omega1, acc1 = kick.vel, kick.omega, kick.acc
     ends = [leg_end(s, j, res[j], lock_out.get(j)) for j in legs]
     new_feet = [foot_state(s, j, res[j], ends[j]) for j in legs]
     outputs = [leg_outputs(s, j, res[j], ends[j], rho0[j], R1) for j in legs]

@@ -33,7 +33,7 @@ from .step_start import StepStart
 from .stroke_lock import (any_of, axial_branches, bending_force, inside_cone, newton_masked,
                           skip_unless, solve_masked, stroke_acceleration, stroke_rate)
 
-__all__ = ["LOCK_LEG_OUT", "second_kick", "shake_drift", "release_branch", "lock_candidates",
+__all__ = ["LOCK_LEG_OUT", "Kick", "second_kick", "shake_drift", "release_branch", "lock_candidates",
            "lock_phase", "gated_lock_phase", "switch_kick"]
 
 #: What the lock's second kick gives per lockable leg: locked at the end, stuck (locked or
@@ -41,8 +41,19 @@ __all__ = ["LOCK_LEG_OUT", "second_kick", "shake_drift", "release_branch", "lock
 LOCK_LEG_OUT = ("locked", "stuck", "rho1", "P1", "loading")
 
 
-def second_kick(s: StepStart, res, vel_h, omega_h, R1, hold=None, mask=(), S=()):
-    """v, ω, a, ΣF, Στ at the end of the step: the second half kick with the feet's end
+class Kick(NamedTuple):
+    """The second half kick: v, ω and a at the end of the step, the legs' ΣF and Στ (body
+    axes) it took."""
+
+    vel: object
+    omega: object
+    acc: object
+    force: object
+    torque: object
+
+
+def second_kick(s: StepStart, res, vel_h, omega_h, R1, hold=None, mask=(), S=()) -> Kick:
+    """The :class:`Kick` at the end of the step: the second half kick with the feet's end
     forces ``res[j]["P1"]`` at ``res[j]["rho1"]``, the lockable legs of ``mask`` held
     at ``hold[j]`` by the axial forces ``S``."""
     rho1, P1 = [], []
@@ -57,7 +68,7 @@ def second_kick(s: StepStart, res, vel_h, omega_h, R1, hold=None, mask=(), S=())
     force1, torque1 = legs_wrench(rho1, P1)
     acc = body_acceleration(s.body, R1, force1, torque1, omega_h)
     vel1, omega1 = half_kick(vel_h, omega_h, acc, s.h)
-    return vel1, omega1, acc[0], force1, torque1
+    return Kick(vel1, omega1, acc[0], force1, torque1)
 
 
 def shake_drift(s: StepStart, rho0, ax0, force, torque, drift):
@@ -69,9 +80,9 @@ def shake_drift(s: StepStart, rho0, ax0, force, torque, drift):
         force = force + Lam[k] * ax0[j]["e_S"]
         torque = torque + Lam[k] * ca.cross(rho0[j], ax0[j]["e_S"])
     shake = kick_drift(s.body, s.start, force, torque, s.h)
-    R1_L = quat_to_rot(shake[3])
+    R1_L = quat_to_rot(shake.quat1)
     held = [ca.if_else(s.locked0[j], s.fns_of[j]["strut_geometry"].call(
-                dict(r=R1_L.T @ (s.feet[j]["foot"] - shake[2])))["delta_S"]
+                dict(r=R1_L.T @ (s.feet[j]["foot"] - shake.pos1)))["delta_S"]
                 - ax0[j]["delta_S"], Lam[k]) for k, j in enumerate(s.lockable)]
     Lam_value = newton_masked(ca.vertcat(*held), Lam, [s.locked0[j] for j in s.lockable])
     shake = ca.substitute(list(shake), [Lam], [Lam_value])
@@ -164,7 +175,8 @@ def _rattle(c: _Hold, held, fixed, S_fixed):
     n_lk = len(c.s.lockable)
     S = [ca.if_else(fixed[k], S_fixed[k], c.mu_sym[k]) for k in range(n_lk)]
     both = [ca.logic_or(held[k], fixed[k]) for k in range(n_lk)]
-    v_mu, w_mu = _kick(c, both, S)[:2]
+    kick = _kick(c, both, S)
+    v_mu, w_mu = kick.vel, kick.omega
     rate = _held_rates(c, held, v_mu, w_mu) + ca.vertcat(
         *[ca.if_else(held[k], 0.0, c.mu_sym[k]) for k in range(n_lk)])
     mu_value = newton_masked(rate, c.mu_sym, held, iterations=1)
@@ -183,8 +195,8 @@ def _holding(c: _Hold, held, fixed, S_fixed, v1, w1):
     v_p, w_p = nu_p[0:3], nu_p[3:6]
     S = [ca.if_else(fixed[k], S_fixed[k], lam[k]) for k in range(n_lk)]
     both = [ca.logic_or(held[k], fixed[k]) for k in range(n_lk)]
-    _, _, _, f_lam, t_lam = _kick(c, both, S)
-    a_lam, alpha_lam = body_acceleration(c.s.body, c.R1, f_lam, t_lam, w_p)
+    kick = _kick(c, both, S)
+    a_lam, alpha_lam = body_acceleration(c.s.body, c.R1, kick.force, kick.torque, w_p)
     dd = ca.vertcat(*[ca.if_else(held[k], stroke_acceleration(
         c.hold[j]["rho"], c.hold[j]["e_S"], c.hold[j]["L"], v_p, w_p, a_lam, alpha_lam, c.R1),
         lam[k]) for k, j in enumerate(c.s.lockable)])
@@ -254,7 +266,7 @@ def lock_phase(s: StepStart, drift, res, cand, end_loading):
                                res[j]["P1"]),
                  loading=ca.if_else(stay[k], s.stored_loading[j], end_loading[k]))
             for k, j in enumerate(s.lockable)]
-    return _lock_outputs((vel1, omega1, _kick(c, stuck, S1)[2]), legs)
+    return _lock_outputs((vel1, omega1, _kick(c, stuck, S1).acc), legs)
 
 
 def _lock_outputs(body, legs) -> list:
@@ -283,7 +295,7 @@ def gated_lock_phase(s: StepStart, drift, res, cand, end_loading):
     cand_in, end_in = ca.SX.sym("cand", n_lk), ca.SX.sym("end_loading", n_lk)
     on = lock_phase(s, drift_in, res_in, ca.vertsplit(cand_in), ca.vertsplit(end_in))
     plain = second_kick(s, res_in, drift_in[0], drift_in[1], quat_to_rot(drift_in[3]))
-    off = _lock_outputs(plain[:3], [dict(locked=ca.SX(0), stuck=ca.SX(0),
+    off = _lock_outputs((plain.vel, plain.omega, plain.acc), [dict(locked=ca.SX(0), stuck=ca.SX(0),
                                          rho1=res_in[j]["rho1"], P1=res_in[j]["P1"],
                                          loading=end_in[k])
                                     for k, j in enumerate(s.lockable)])
