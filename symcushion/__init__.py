@@ -8,7 +8,8 @@ modules behind it). ``symcushion.simulate`` is the function
 still reads the compatibility module of the same name.
 """
 from . import envelope, optimise
-from .characteristics import Crushable, Curve, Linear, PiecewiseLinear, TwoSided
+from .characteristics import Crushable, Linear, PiecewiseLinear, TwoSided
+from .curve_base import Curve
 from .contact import METHODS, contact_step, solve_contact
 from .driver import Trajectory, save, simulate
 from .layout import MODES, output_columns, state_columns

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .characteristics import (KINK_WIDTH, RATE_WIDTH, Crushable, Curve, GasSpring, Linear,
-                              PiecewiseLinear, TwoSided)
+from .characteristics import Crushable, GasSpring, Linear, PiecewiseLinear, TwoSided
+from .curve_base import KINK_WIDTH, RATE_WIDTH, Curve
 from .contact import METHODS  # re-exported: scenes name their contact step
 from .obstacles import ImplicitSurface, Obstacle, Plane, Sphere, Terrain
 from .strut import DEFAULT_LAW, LAWS, HingedStrut

@@ -43,7 +43,7 @@ import casadi as ca
 import numpy as np
 
 from . import absorber
-from .characteristics import Curve
+from .curve_base import Curve
 from .layout import TRIPOD_GEOMETRY_FIELDS
 from .leg_scheme import cached_memory_functions, curve_param_names, curve_param_values
 from .validation import real, vector
