@@ -15,7 +15,8 @@ from .driver import Trajectory, save, simulate
 from .layout import MODES, output_columns, state_columns
 from .measures import measures_function
 from .obstacles import ImplicitSurface, Plane, Sphere, Terrain
-from .scene import Body, Scene, load_scene, scene_from_dict, symmetric_legs
+from .scene import load_scene, scene_from_dict
+from .scene_data import Body, Scene, symmetric_legs
 from .strut import HingedStrut
 from .tripod import InvertedTripod
 from .stability import stable_dt

@@ -39,7 +39,7 @@ import numpy as np
 
 from ..characteristics import Linear
 from ..obstacles import Plane, Sphere
-from ..scene import Scene
+from ..scene_data import Scene
 from ..layout import state_layout
 from .run import (PeerRun, check_scene, leg_kinematics, output_times, positive, quat_to_rot_np,
                   state_vector)

@@ -37,7 +37,7 @@ import casadi as ca
 import numpy as np
 
 from ..obstacles import ImplicitSurface, Plane, Sphere
-from ..scene import Scene
+from ..scene_data import Scene
 from ..layout import state_layout
 from ..quaternion import quat_mul, quat_to_rot
 from ..layout import BODY_STATE, BODY_STATE_FIELDS, Field, VectorLayout
