@@ -44,7 +44,7 @@ import numpy as np
 
 from . import absorber
 from .curve_base import Curve
-from .layout import TRIPOD_GEOMETRY_FIELDS
+from .layout_params import TRIPOD_GEOMETRY_FIELDS
 from .leg_scheme import cached_memory_functions, curve_param_names, curve_param_values
 from .validation import real, vector
 
@@ -302,7 +302,7 @@ class InvertedTripod:
     def _dm_geometry(self, r):
         return (r, ca.DM(self.h1), ca.DM(self.h2), ca.DM(self.h3), self.outer_length)
 
-    # -- geometry as inputs (symcushion.layout.TRIPOD_GEOMETRY_FIELDS) -----------------
+    # -- geometry as inputs (symcushion.layout_params.TRIPOD_GEOMETRY_FIELDS) -----------------
     geometry_fields = TRIPOD_GEOMETRY_FIELDS
 
     @property
