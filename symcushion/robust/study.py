@@ -171,7 +171,7 @@ def _write_geometry(result, out_dir):
     import json
     from pathlib import Path
 
-    from ..results import atomic_write_text, jsonable
+    from ..output_files import atomic_write_text, jsonable
     path = Path(out_dir) / "geometry.json"
     atomic_write_text(path, json.dumps(jsonable(result.geometry), indent=2,
                                        ensure_ascii=False) + "\n")
