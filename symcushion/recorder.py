@@ -2,10 +2,11 @@
 
 A :class:`Recorder` receives the times, states and outputs of a block of
 steps and detects the legs' events (touchdown, lift-off, stick/slip), feeds
-an optional run monitor (its findings become :class:`RunWarning`\ s), tracks
-the peaks, streams the rows to a :class:`~symcushion.results.ResultWriter`,
-keeps a thinned copy for the figures, sums the energy terms and shows
-progress; at the end it assembles the :class:`~symcushion.trajectory.Trajectory`.
+an optional run monitor (its findings are raised as :class:`RunWarning`),
+tracks the peaks, streams the rows to a
+:class:`~symcushion.results.ResultWriter`, keeps a thinned copy for the
+figures, sums the energy terms and shows progress; at the end it assembles
+the :class:`~symcushion.trajectory.Trajectory`.
 
 This module owns that bookkeeping. It must not step the model (the time
 loops of ``symcushion.time_loops`` do), choose a step, or format files.
