@@ -32,12 +32,14 @@ import warnings
 import numpy as np
 
 # the findings, checks and tolerances of the families, re-exported: users read them here
-from .checks_legs import (DT_ERROR_RATIO, check_buckling, check_curves, check_damping_times,
-                          check_time_step)
-from .checks_obstacles import (BODY_TOLERANCE, FAST_STEP_FRACTION, FD_STEP, FOOTPAD_FRACTION,
-                               GRADIENT_TOLERANCE, REACH_FRACTIONS, SAMPLE_DIRECTIONS,
-                               START_TOLERANCE, check_footpads, check_free_directions,
-                               check_start, check_surfaces, check_terrain)
+# (docs/checks.md names FREE_DIRECTION_RATIO and DAMPING_TIME_SPREAD as constants of this module)
+from .checks_legs import (DAMPING_TIME_SPREAD, DT_ERROR_RATIO, check_buckling,  # noqa: F401
+                          check_curves, check_damping_times, check_time_step)
+from .checks_obstacles import (BODY_TOLERANCE, FAST_STEP_FRACTION, FD_STEP,  # noqa: F401
+                               FOOTPAD_FRACTION, FREE_DIRECTION_RATIO, GRADIENT_TOLERANCE,
+                               REACH_FRACTIONS, SAMPLE_DIRECTIONS, START_TOLERANCE,
+                               check_footpads, check_free_directions, check_start,
+                               check_surfaces, check_terrain)
 from .findings import Finding, PhysicsWarning
 from .scene_data import Scene
 from .touchdown import initial_state
