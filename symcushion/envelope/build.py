@@ -15,7 +15,8 @@ import casadi as ca
 import numpy as np
 
 from ..codegen import compile_cached
-from ..scene import Scene, scene_from_dict
+from ..scene import scene_from_dict
+from ..scene_data import Scene
 from ..touchdown import build_model
 from .cases import envelope_function, SUMMARY
 
