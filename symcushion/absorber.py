@@ -69,7 +69,7 @@ import casadi as ca
 from .characteristics import Crushable, TwoSided
 from .curve_base import Curve
 
-__all__ = ["elastic_stiffness", "band", "memory_force", "band_force", "next_set",
+__all__ = ["elastic_stiffness", "default_damping_time", "DEFAULT_DAMPING_RATIO", "band", "memory_force", "band_force", "next_set",
            "free_deflection", "set_on_loading", "damper_force", "end_rate", "relaxed_deflection",
            "RELAX_NEWTON_STEPS"]
 
@@ -78,6 +78,20 @@ __all__ = ["elastic_stiffness", "band", "memory_force", "band_force", "next_set"
 #: (orifice): each step lands on the solution of the segment it starts on, so
 #: four cross three kinks of the band; a free foot's error is no contact force.
 RELAX_NEWTON_STEPS = 4
+
+
+#: Damping ratio ζ that a scene file gives the axial mode of a leg on the memory law
+#: when none of the leg's elements names a damper (docs/absorbers.md, "Default
+#: damping"): the loss of a leg's structure and its absorber's sliding parts, not of
+#: a hydraulic damper.
+DEFAULT_DAMPING_RATIO = 0.05
+
+
+def default_damping_time(axial: Curve, mass_share: float, ratio: float) -> float:
+    """τ = c/k = 2ζ/ω of a leg's axial mode, ω = √(k_e/m), k_e the axial element's
+    elastic stiffness (A1) and m the body's mass share per leg (s)."""
+    k_e = float(elastic_stiffness(axial))
+    return 2.0 * ratio * (mass_share / k_e) ** 0.5
 
 
 def elastic_stiffness(curve: Curve, theta=None):

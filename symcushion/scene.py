@@ -12,9 +12,12 @@ it is where users import scenes from. It must not define what a scene is
 """
 from __future__ import annotations
 
+import copy
+import dataclasses
 import sys
 from pathlib import Path
 
+from .absorber import DEFAULT_DAMPING_RATIO, default_damping_time, elastic_stiffness
 from .characteristics import Crushable, GasSpring, Linear, PiecewiseLinear, TwoSided
 from .curve_base import KINK_WIDTH, RATE_WIDTH, Curve
 from .contact import METHODS  # re-exported: scenes name their contact step
@@ -255,7 +258,7 @@ def _terrain(t: Table):
 
 
 _SCENE_KEYS = ("name", "mu", "method", "dt", "duration", "gravity", "tangent_plane", "slip",
-               "events", "hysteresis")
+               "events", "hysteresis", "damping_ratio")
 _BODY_KEYS = ("mass", "inertia", "position", "attitude", "velocity", "angular_velocity")
 
 
@@ -274,6 +277,46 @@ def _body(top: Table):
                                          size=3))
     b.finish(known=_BODY_KEYS)
     return _build(b, Body, **fields)
+
+
+def _settings(s: Table, name: str) -> dict:
+    """The [scene] table's settings. A file's scheme defaults to the second-order
+    one of docs/scenes.md ("Defaults"): the midpoint slip rule on the implicit step,
+    and the memory law (with DEFAULT_DAMPING_RATIO) where no event rule is named."""
+    method = s.get("method", "implicit", kind="string", choices=METHODS)
+    events = s.get("events", "none", kind="string", choices=EVENT_RULES)
+    hysteresis = s.get("hysteresis", "memory" if events == "none" else "sign",
+                       kind="string", choices=HYSTERESIS_LAWS)
+    if s.has("damping_ratio") and hysteresis != "memory":
+        s.fail("`scene.damping_ratio` gives dampers to the memory law's elements, and "
+               f"`hysteresis` is {hysteresis!r}; set hysteresis = \"memory\" or remove "
+               "`damping_ratio`.")
+    return dict(mu=s.get("mu", 0.0, nonnegative=True), method=method,
+                dt=s.get("dt", 1e-3, positive=True),
+                duration=s.get("duration", 1.0, positive=True),
+                gravity=s.get("gravity", (0.0, 0.0, -9.81), kind="vector", size=3),
+                name=s.get("name", name, kind="string"),
+                tangent_plane=s.get("tangent_plane", "end", kind="string",
+                                    choices=TANGENT_PLANES),
+                slip=s.get("slip", "midpoint" if method == "implicit" else "backward",
+                           kind="string", choices=SLIP_RULES),
+                events=events, hysteresis=hysteresis,
+                damping_ratio=s.get("damping_ratio", DEFAULT_DAMPING_RATIO, nonnegative=True))
+
+
+def _damped_by_default(leg, mass_share: float, ratio: float):
+    """``leg`` with a viscous damper of one damping time τ (``default_damping_time`` of
+    its axial element) on every element, c = τ k_e, unless an element names a damper."""
+    if any(el.curve.has_damper for el in leg.elements):
+        return leg
+    tau = default_damping_time(leg.elements[0].curve, mass_share, ratio)
+    damped = []
+    for el in leg.elements:
+        curve = copy.copy(el.curve)
+        curve.damping = tau * float(elastic_stiffness(curve))
+        damped.append(dataclasses.replace(el, curve=curve))
+    leg.elements = tuple(damped)
+    return leg
 
 
 def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
@@ -302,21 +345,13 @@ def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
     if s is INVALID:
         settings = INVALID
     else:
-        settings = dict(mu=s.get("mu", 0.0, nonnegative=True),
-                        method=s.get("method", "implicit", kind="string", choices=METHODS),
-                        dt=s.get("dt", 1e-3, positive=True),
-                        duration=s.get("duration", 1.0, positive=True),
-                        gravity=s.get("gravity", (0.0, 0.0, -9.81), kind="vector", size=3),
-                        name=s.get("name", Path(source).stem, kind="string"),
-                        tangent_plane=s.get("tangent_plane", "end", kind="string",
-                                            choices=TANGENT_PLANES),
-                        slip=s.get("slip", "backward", kind="string", choices=SLIP_RULES),
-                        events=s.get("events", "none", kind="string", choices=EVENT_RULES),
-                        hysteresis=s.get("hysteresis", "sign", kind="string",
-                                         choices=HYSTERESIS_LAWS))
+        settings = _settings(s, Path(source).stem)
         s.finish(known=_SCENE_KEYS)
     top.finish(known=("scene", "body", "legs", "leg", "obstacle"))
     problems.raise_if_any()
+    ratio = settings.pop("damping_ratio")
+    if settings["hysteresis"] == "memory" and ratio > 0 and legs:
+        legs = [_damped_by_default(leg, body.mass / len(legs), ratio) for leg in legs]
     try:
         return Scene(body=body, legs=legs, obstacles=obstacles, **settings)
     except (ValueError, TypeError) as exc:

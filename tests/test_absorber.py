@@ -217,7 +217,7 @@ def _drop(S, duration, dt, x0=None, gap=0.0):
     steps) and the scene."""
     data = read_toml(STUDIES / "tutorial" / "leg_design.toml")
     data = {k: data[k] for k in ("scene", "body", "leg", "obstacle")}
-    data["scene"].update(hysteresis="memory", duration=duration, dt=dt)
+    data["scene"].update(hysteresis="memory", damping_ratio=0.0, duration=duration, dt=dt)
     data["leg"][0]["S"] = S
     data["body"]["position"] = list(np.add(data["body"]["position"], [0.0, 0.0, gap]))
     scene = scene_from_dict(data)

@@ -28,7 +28,7 @@ needs_cc = pytest.mark.skipif(find_compiler() is None, reason="needs a C compile
 TINY = {
     "study": {"name": "tiny_design"},
     "scene": {"mu": 0.5, "method": "robust", "dt": 2e-3, "duration": 1.0,
-              "gravity": [0.0, 0.0, -9.81]},
+              "gravity": [0.0, 0.0, -9.81], "hysteresis": "sign"},
     "body": {"mass": 100.0, "inertia": [10.0, 10.0, 12.0]},
     "legs": {"count": 3, "radius": 0.4, "height": -0.1, "length": 0.6,
              "e0": [0.0, 0.0, -1.0], "en": [-0.5, 0.0, -0.8660254037844386],
