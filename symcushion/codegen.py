@@ -61,6 +61,10 @@ HEADER = "symcushion.h"
 #: The C loop over the step that the touchdown source ends with (symcushion/c/rollout.c).
 ROLLOUT = "touchdown_rollout"
 ROLLOUT_SOURCE = "rollout.c"
+#: The step split for the rollout (:func:`hoisted_step`): what depends on p alone,
+#: computed once per rollout, and the rest, called once per step.
+PARAMETRIC = "touchdown_step_parametric"
+CORE = "touchdown_step_core"
 SCENE_DATA = "scene_data.h"
 
 
@@ -197,6 +201,39 @@ class _Signature:
                    f"{f.n_instructions()} {kind} instructions", f.n_instructions())
 
 
+def hoisted_step(step: ca.Function) -> tuple[ca.Function, ca.Function, ca.Function]:
+    """(step, parametric, core): ``step`` split at what depends on ``p`` alone.
+
+    ``touchdown_step(x, p, dt)`` computes, in every step, values that depend on
+    the parameters only (the inverse of the inertia, the legs' unit axes e₀ and
+    e_n, their rest angle γ₀ by atan2, the rest feet): for Fig. 3 some 200 of
+    its 5 400 SX instructions, 4 of its 12 atan2. ``casadi.extract_parametric``
+    cuts the step's graph there: ``touchdown_step_parametric(p) -> q`` holds
+    those instructions, ``touchdown_step_core(x, p, dt, q) -> (x_next, y)`` the
+    rest, with q in their place. The rollout runs the first once and the
+    second N times (symcushion/c/rollout.c); the returned ``touchdown_step`` is
+    the two called in turn (an MX Function of the same name and arguments as
+    ``step``), so that the C source holds the step's instructions once. All
+    execute the step's own operations on the same operands: the results are
+    the same bits.
+    """
+    x, p, dt = step.sx_in()
+    out = step.call([x, p, dt])
+    sizes = [o.numel() for o in out]
+    expr, symbols, values = ca.extract_parametric(ca.vertcat(*[ca.vec(o) for o in out]), p)
+    q = ca.vertcat(*[ca.vec(s) for s in symbols]) if symbols else ca.SX(0, 1)
+    q_value = ca.vertcat(*[ca.vec(v) for v in values]) if values else ca.SX(0, 1)
+    parametric = ca.Function(PARAMETRIC, [p], [q_value], ["p"], ["q"], {"cse": True})
+    parts = ca.vertsplit(expr, list(np.cumsum([0] + sizes)))
+    core = ca.Function(CORE, [x, p, dt, q], [ca.reshape(part, o.shape)
+                                              for part, o in zip(parts, out)],
+                       ["x", "p", "dt", "q"], step.name_out(), {"cse": True})
+    args = [ca.MX.sym(name, step.sparsity_in(i)) for i, name in enumerate(step.name_in())]
+    whole = ca.Function(step.name(), args, core(*args, parametric(args[1])), step.name_in(),
+                        step.name_out())
+    return whole, parametric, core
+
+
 def _loop_rollout(model: StepModel, steps: int) -> _Signature:
     """``touchdown_rollout``: ``symcushion/c/rollout.c``, N calls of the step in a C loop."""
     return _Signature(ROLLOUT, (("x0", f"{model.nx}"), ("p", f"{model.np}"), ("dt", "1")),
@@ -282,7 +319,9 @@ def _functions(scene: Scene | None, steps: int | None):
         docs["touchdown_rollout"] = (
             f"N = {steps} touchdown steps from x0 with the same p and dt: touchdown_step\n"
             "called in a C loop, column k of X and Y written by step k + 1 (the\n"
-            "same bits as touchdown_step.mapaccum(N)).",
+            "same bits as touchdown_step.mapaccum(N)); what depends on p alone is\n"
+            "computed once (touchdown_step_parametric), each step runs the rest\n"
+            "(touchdown_step_core).",
             _TOUCHDOWN_ARGS)
     for f in kernels + touchdown:
         _check_dense(f)
@@ -313,11 +352,12 @@ def _generate_source(name: str, functions, out_dir: Path, tail: str = "",
     return source, text
 
 
-def _rollout_source(model: StepModel, steps: int) -> tuple[str, str]:
+def _rollout_source(model: StepModel, steps: int, nq: int) -> tuple[str, str]:
     """(C code, declarations) of ``touchdown_rollout``: symcushion/c/rollout.c with the
-    sizes of this step and N = ``steps``."""
+    sizes of this step, ``nq`` values of p alone (:func:`hoisted_step`) and N = ``steps``."""
     sizes = (f"#define ROLLOUT_NX {model.nx}\n#define ROLLOUT_NY {model.ny}\n"
-             f"#define ROLLOUT_NP {model.np}\n#define ROLLOUT_STEPS {steps}\n")
+             f"#define ROLLOUT_NP {model.np}\n#define ROLLOUT_NQ {nq}\n"
+             f"#define ROLLOUT_STEPS {steps}\n")
     code = (Path(__file__).parent / "c" / ROLLOUT_SOURCE).read_text()
     args = ("(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, "
             "int mem)")
@@ -332,10 +372,12 @@ def _rollout_source(model: StepModel, steps: int) -> tuple[str, str]:
         f"const casadi_int* {ROLLOUT}_sparsity_in(casadi_int i);",
         f"const casadi_int* {ROLLOUT}_sparsity_out(casadi_int i);",
         f"int {ROLLOUT}_work{work};", f"int {ROLLOUT}_work_bytes{work};",
-        f"#define {ROLLOUT}_SZ_ARG (3 + touchdown_step_SZ_ARG)",
-        f"#define {ROLLOUT}_SZ_RES (2 + touchdown_step_SZ_RES)",
-        f"#define {ROLLOUT}_SZ_IW touchdown_step_SZ_IW",
-        f"#define {ROLLOUT}_SZ_W (2 * {model.nx} + touchdown_step_SZ_W)"]) + "\n"
+        f"#define {ROLLOUT}_MAX(a, b) ((a) > (b) ? (a) : (b))",
+        f"#define {ROLLOUT}_SZ_ARG (3 + {ROLLOUT}_MAX({CORE}_SZ_ARG, {PARAMETRIC}_SZ_ARG))",
+        f"#define {ROLLOUT}_SZ_RES (2 + {ROLLOUT}_MAX({CORE}_SZ_RES, {PARAMETRIC}_SZ_RES))",
+        f"#define {ROLLOUT}_SZ_IW {ROLLOUT}_MAX({CORE}_SZ_IW, {PARAMETRIC}_SZ_IW)",
+        f"#define {ROLLOUT}_SZ_W (2 * {model.nx} + {nq} + {ROLLOUT}_MAX({CORE}_SZ_W, "
+        f"{PARAMETRIC}_SZ_W))"]) + "\n"
     return "\n" + sizes + code, declarations
 
 
@@ -505,7 +547,10 @@ def generate(out_dir, scene=None, build: bool = False, steps: int | None = None,
         steps = scene.steps if steps is None else steps
     groups = {KERNELS: (kernels, "", "")}
     if touchdown:
-        groups[TOUCHDOWN] = (touchdown, *_rollout_source(model, steps))
+        # the rollout's loop calls the step split at its parameters (hoisted_step)
+        hoisted = hoisted_step(model.step)
+        groups[TOUCHDOWN] = (list(hoisted),
+                             *_rollout_source(model, steps, hoisted[1].nnz_out(0)))
     sources, header_parts = {}, []
     for name, (fns, tail, declarations) in groups.items():
         src, text = _generate_source(name, fns, out, tail, declarations,
