@@ -53,6 +53,7 @@ from .touchdown import StepModel, build_model, initial_state
 
 __all__ = ["CFLAGS", "CODEGEN_OPTIONS", "WARNINGS", "CachedBuild", "CompiledModel", "Generated",
            "build_program", "compile_cached", "compiled_model", "find_compiler", "generate",
+           "hoisted_step",
            "load_compiled"]
 
 #: Base names of the two generated sources, compiled in parallel: the contact
