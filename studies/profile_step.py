@@ -142,13 +142,16 @@ def profile(label: str, path: Path, method: str | None, folder: Path) -> list:
     us = per_step_us(gen.program, folder)
     shares = perf_shares(gen.program, c_names(folder / f"{TOUCHDOWN}.c"), folder) \
         if shutil.which("perf") else {}
-    body_share = shares.get("touchdown_step", float("nan"))
+    # the step is compiled as its p-only part and the rest (codegen.hoisted_step),
+    # called in turn by touchdown_step: together, the step body
+    body_names = ("touchdown_step", "touchdown_step_parametric", "touchdown_step_core")
+    body_share = sum(shares.get(name, 0.0) for name in body_names) if shares else float("nan")
     rows = [("step body: strut P and D_p (est. by SX instructions)", strut,
              body_share * strut / body),
             ("step body: the rest (tangent planes, kicks, drift, outputs)", body - strut,
              body_share * (body - strut) / body)]
     for name, share in sorted(shares.items(), key=lambda kv: -kv[1]):
-        if name in ("touchdown_step", "other", LIBM):
+        if name in body_names + ("other", LIBM):
             continue
         f, n_calls = called.get(name, (None, 0))
         if f is None:      # a branch of a Switch: run in some of the Switch's calls

@@ -101,6 +101,22 @@ def test_touchdown_mujoco_check(fig3_scene):
     bench_touchdown.check_mujoco(fig3_scene, STEPS)
 
 
+@pytest.mark.parametrize("path", ["lander_slope.toml", "tutorial/lander.toml"])
+def test_touchdown_mujoco_check_nonlinear_legs(path):
+    """The landers' absorbers are non-linear: MuJoCo is timed on the same lander with
+    linear springs of their slopes at rest (bench_touchdown.mujoco_scene), checked the same way."""
+    pytest.importorskip("mujoco", reason="the MuJoCo peer needs the optional extra "
+                                         "symcushion[peers]")
+    from symcushion.characteristics import Linear
+    from symcushion.scene import load_scene
+    scene = load_scene(STUDIES / path)
+    linear = bench_touchdown.mujoco_scene(scene)
+    assert linear is not scene and all(isinstance(el.curve, Linear) for leg in linear.legs
+                                       for el in leg.elements)
+    assert len(linear.legs) == len(scene.legs) and linear.mu == scene.mu
+    bench_touchdown.check_mujoco(linear, STEPS)
+
+
 def test_contact_checks(tmp_path):
     cases = bench_contact.spatial_cases(np.random.default_rng(1), CONTACT_CASES)
     for called in (False, True):

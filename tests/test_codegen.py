@@ -154,6 +154,26 @@ def test_touchdown_step_and_rollout_equal_sx(built, scene):
     _assert_same(fns["touchdown_rollout"], model.rollout(scene.steps), args, "touchdown_rollout")
 
 
+def test_hoisted_step_is_the_step(scene):
+    """The step split at its parameters (p-only part once, the rest per step) gives the
+    step's bits on the VM, with p changed too (mass, inertia, a leg's geometry)."""
+    model = build_model(scene)
+    whole, parametric, core = codegen.hoisted_step(model.step)
+    assert parametric.nnz_out(0) > 0 and core.n_instructions() < model.step.n_instructions()
+    x0 = initial_state(scene)
+    X, _ = model.rollout(20)(x0, model.default_p, scene.dt)
+    rng = np.random.default_rng(3)
+    for i in range(STEP_CASES):
+        x = np.asarray(X)[:, rng.integers(20)]
+        p = model.pack_params(mass=50.0 * rng.uniform(0.8, 1.2),
+                              **{"leg0.length": 0.6 * rng.uniform(0.95, 1.05)})
+        ref = model.step(x, p, scene.dt)
+        q = parametric(p)
+        for got in (whole(x, p, scene.dt), core(x, p, scene.dt, q)):
+            for a, b in zip(got, ref):
+                assert np.array_equal(np.asarray(a), np.asarray(b)), f"case {i}"
+
+
 def test_compiled_model_simulates_like_the_vm(built, scene):
     gen, _ = built
     compiled = codegen.compiled_model(scene, gen.out_dir)
