@@ -50,8 +50,9 @@ def study(raw):
     data["scene"]["duration"] = SHORT_DURATION
     # the machinery under test is the same for every contact step: the tests
     # use the cheap one (compiles in seconds) rather than the example's
-    # implicit step with the stroke lock at 0.125 ms (docs/envelope.md,
-    # "Method and Δt")
+    # implicit step with the midpoint slip at 1 ms (docs/envelope.md,
+    # "Method and Δt"); the absorbers with memory and their dampers are the
+    # example's
     data["scene"].update(method="robust", dt=2e-3, tangent_plane="start", slip="backward",
                          events="none")
     data["sampling"]["n"] = CASES
