@@ -370,6 +370,31 @@ def test_missing_study_file_is_reported(tmp_path):
 
 
 @needs_cc
+def test_a_built_study_is_found_by_its_index_without_generating_c(study, library, cache,
+                                                                  monkeypatch):
+    """A study whose library was built is found from the index of what it was built from
+    (as a new process reads its file) without building the step's graph; another Δt
+    is not."""
+    from symcushion.envelope import build as eb
+    from symcushion.scene import scene_from_dict
+
+    def scene():                                # a fresh Scene, as a new process reads it
+        return scene_from_dict(study.scene_data, study.source).with_(
+            **{k: getattr(study.scene, k) for k in ("method", "dt", "duration",
+                                                    "tangent_plane", "slip", "events")})
+    first = ev.build_envelope(scene(), cache)
+    assert first.resolve() == Path(library).resolve()
+    assert list((Path(cache) / eb._INDEX).glob("*.json"))
+
+    def no_graph(*args, **kwargs):
+        raise AssertionError("the step's graph was built for a library in the index")
+    monkeypatch.setattr(eb, "build_model", no_graph)
+    assert ev.build_envelope(scene(), cache) == first
+    with pytest.raises(AssertionError, match="graph was built"):
+        ev.build_envelope(scene().with_(dt=study.scene.dt / 2), cache)
+
+
+@needs_cc
 def test_mu_sampled_continuously_from_one_library(raw, study, cache):
     """A uniform μ range runs on one compiled library, μ entering through p; each
     case equals the same touchdown evaluated alone with its μ."""
