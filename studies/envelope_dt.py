@@ -19,11 +19,20 @@ the absorbers with memory"), and every run's columns in
 ``out/envelope_dt/classes.npz`` (one array per column and Δt, keyed
 ``<column>@<dt in ms>``) for later comparisons.
 
+With ``--rebounds``: why the example rebounds more than the printed-law
+example did (docs/envelope.md, "The example"). Three flat-ground rebounds of
+the study (:data:`REBOUND_CASES`) are simulated alone for 0.4 s, on the
+CasADi VM, with the study's scene and with variants (the printed law with the
+stroke lock as the example was before, a ten times stiffer elastic line, no
+dampers, stiffer hinges); the table gives each one's largest upward speed.
+
     python studies/envelope_dt.py [--n 2000] [--dt 2e-3 1e-3 5e-4 2.5e-4]
+    python studies/envelope_dt.py --rebounds
 """
 from __future__ import annotations
 
 import argparse
+import copy
 import os
 import resource
 import time
@@ -32,7 +41,11 @@ from pathlib import Path
 
 import numpy as np
 
-from symcushion.envelope import evaluate, load_study, sample_conditions, wilson_interval
+from symcushion.envelope import (case_params, evaluate, initial_states, load_study,
+                                 sample_conditions, study_from_dict, wilson_interval)
+from symcushion.layout import state_layout
+from symcushion.scene import read_toml
+from symcushion.touchdown import build_model
 
 ROOT = Path(__file__).resolve().parent.parent
 STUDY = ROOT / "studies" / "envelope_lander.toml"
@@ -44,6 +57,73 @@ AIM = 0.005
 DTS = (2e-3, 1e-3, 5e-4, 2.5e-4)
 #: Class pairs listed per halving, the most frequent first.
 PAIRS = 5
+
+
+#: Cases of the study (its Sobol points) that rebound on flat ground: the first
+#: three with class "rebound" and a slope below 3°.
+REBOUND_CASES = (0, 39, 58)
+REBOUND_TIME = 0.4
+
+
+def _variants() -> list:
+    """(label, study) of the rebound comparison, from the study file's tables."""
+    raw = read_toml(STUDY)
+
+    def variant(change):
+        data = copy.deepcopy(raw)
+        change(data)
+        return study_from_dict(data, str(STUDY))
+
+    def printed(d):          # the example before: printed law, stroke lock, 20-mm rise
+        d["scene"].update(hysteresis="sign", events="lock", dt=1.25e-4)
+        d["legs"]["S"]["x"] = [-0.30, -0.02, 0.0]
+        for name in ("S", "M_beta", "M_gamma"):
+            d["legs"][name].pop("damping", None)
+
+    def stiffer_line(d):     # k_e = 1e7 N/m (a 0.2-mm rise), the same τ
+        d["legs"]["S"]["x"] = [-0.30, -0.0002, 0.0]
+        d["legs"]["S"]["damping"] *= 10
+
+    def no_dampers(d):
+        for name in ("S", "M_beta", "M_gamma"):
+            d["legs"][name].pop("damping", None)
+
+    def stiffer_hinges(d):   # 2e6 N·m/rad, the same τ
+        for name in ("M_beta", "M_gamma"):
+            d["legs"][name]["stiffness"] *= 10
+            d["legs"][name]["damping"] *= 10
+
+    return [("the example", variant(lambda d: None)),
+            ("the printed law with the lock (the example before, 0.125 ms)", variant(printed)),
+            ("the example with an elastic line of 1e7 N/m (0.2-mm rise, τ kept)",
+             variant(stiffer_line)),
+            ("the example without dampers", variant(no_dampers)),
+            ("the example with hinge springs of 2e6 N·m/rad", variant(stiffer_hinges))]
+
+
+def rebounds() -> str:
+    """Largest upward speed (along the true vertical) over REBOUND_TIME of each
+    rebound case, in each variant: a Markdown table."""
+    conditions = sample_conditions(load_study(STUDY).with_(n=max(REBOUND_CASES) + 1))
+    cases = {k: np.asarray(v)[list(REBOUND_CASES)] for k, v in conditions.items()}
+    rows = ["| run | " + " | ".join(f"case {i}" for i in REBOUND_CASES) + " |",
+            "|---|" + "---:|" * len(REBOUND_CASES)]
+    for label, study in _variants():
+        model, dt = build_model(study.scene), study.scene.dt
+        layout = state_layout(len(study.scene.legs))
+        x0, gravity = initial_states(study, cases)
+        p = case_params(study.scene, cases["mu"], gravity)
+        cells = []
+        for j in range(len(REBOUND_CASES)):
+            up = -gravity[:, j] / np.linalg.norm(gravity[:, j])
+            x, best = x0[:, j], 0.0
+            for _ in range(int(round(REBOUND_TIME / dt))):
+                x = np.asarray(model.step(x, p[:, j], dt)[0]).ravel()
+                best = max(best, float(np.asarray(layout.get(x, "velocity")).ravel() @ up))
+            cells.append(f"{best:.3f}")
+        rows.append(f"| {label} | " + " | ".join(cells) + " |")
+        print(rows[-1], flush=True)
+    return "\n".join(rows)
 
 
 def _cpu() -> float:
@@ -110,7 +190,12 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--n", type=int, default=CASES)
     parser.add_argument("--dt", type=float, nargs="+", default=list(DTS))
+    parser.add_argument("--rebounds", action="store_true",
+                        help="the rebound comparison instead of the class changes")
     args = parser.parse_args(argv)
+    if args.rebounds:
+        print(rebounds())
+        return
     dts = tuple(sorted(args.dt, reverse=True))
     res = run(args.n, dts)
     save(res)
