@@ -24,6 +24,11 @@ Questions (docs/absorbers.md, "What it measures"):
    lander — with either slip rule: the final position and the trajectory
    (largest distance over the times every run shares), over the travel, at
    Δt = 4 … 0.125 ms against a 31.25-µs run, and their fitted orders.
+6. The same final-position errors of the slope, hop and tutorial landers
+   (midpoint slip) at 16 log-spaced steps from 4 to 0.125 ms instead of six
+   halvings, fitted over all and over Δt ≤ 1 ms: is a fitted order of 1.4–1.6
+   an error that falls slower than Δt², or a second-order error whose size
+   changes with where the events fall in the step?
 
 Output: the tables on stdout. Run: ``python studies/absorbers.py``.
 """
@@ -142,6 +147,26 @@ def event_orders():
                   + " ".join(f"{e:.2e}" for e in traj))
 
 
+def spread_orders(count=16):
+    """Question 6: final-position errors at ``count`` log-spaced steps, and the fits."""
+    print(f"\nfinal position at {count} log-spaced steps, 4 … 0.125 ms (midpoint slip):"
+          " error over the travel, fitted order over all and over Δt ≤ 1 ms")
+    for name, path, duration in EVENT_LANDERS[:3]:
+        scene = load_scene(path).with_(hysteresis="memory", duration=duration,
+                                       slip="midpoint")
+        xl = state_layout(len(scene.legs))
+        ref = xl.get(rollout(scene, REFERENCE_STEP)[0], "position")[:, -1]
+        travel = np.linalg.norm(ref - initial_state(scene)[:3])
+        counts = np.unique(np.round(np.geomspace(duration / 4e-3, duration / 1.25e-4, count)))
+        steps = duration / counts
+        errors = np.array([np.linalg.norm(xl.get(rollout(scene, dt)[0], "position")[:, -1]
+                                          - ref) / travel for dt in steps])
+        fine = steps <= 1.0001e-3
+        print(f"  {name:9s} order {order_fit(steps, errors):5.2f} (Δt ≤ 1 ms: "
+              f"{order_fit(steps[fine], errors[fine]):5.2f})")
+        print("      " + " ".join(f"{1e3 * dt:.3g}:{e:.1e}" for dt, e in zip(steps, errors)))
+
+
 def with_damping_time(tau, hinges=True):
     """The damped lander with every element's damping c = τ·k (the hinge springs' only
     if ``hinges``)."""
@@ -196,6 +221,7 @@ def main():
         print(f"  {name:16s} " + "".join(f"{e:12.2e}" for e in errors) + f"   {order:5.2f}")
     damping_sweep()
     event_orders()
+    spread_orders()
 
 
 if __name__ == "__main__":

@@ -108,7 +108,7 @@ def figure(rows, path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from symcushion.results import replacing
+    from symcushion.output_files import replacing
 
     fig, axes = plt.subplots(2, 2, figsize=(11, 10.5))
     markers = dict(zip(dict.fromkeys(r["scene"] for r in rows), "osD^"))

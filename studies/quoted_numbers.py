@@ -44,7 +44,7 @@ from symcushion.driver import Trajectory
 from symcushion.envelope import DEFAULT_REST_SPEED
 from symcushion.envelope.statistics import wilson_interval
 from symcushion.reproduce import claims_table, reproduce
-from symcushion.results import atomic_write_text
+from symcushion.output_files import atomic_write_text
 from symcushion.scene import load_scene
 from symcushion.touchdown import build_model
 

@@ -8,13 +8,15 @@ modules behind it). ``symcushion.simulate`` is the function
 still reads the compatibility module of the same name.
 """
 from . import envelope, optimise
-from .characteristics import Crushable, Curve, Linear, PiecewiseLinear, TwoSided
+from .characteristics import Crushable, Linear, PiecewiseLinear, TwoSided
+from .curve_base import Curve
 from .contact import METHODS, contact_step, solve_contact
 from .driver import Trajectory, save, simulate
 from .layout import MODES, output_columns, state_columns
 from .measures import measures_function
 from .obstacles import ImplicitSurface, Plane, Sphere, Terrain
-from .scene import Body, Scene, load_scene, scene_from_dict, symmetric_legs
+from .scene import load_scene, scene_from_dict
+from .scene_data import Body, Scene, symmetric_legs
 from .strut import HingedStrut
 from .tripod import InvertedTripod
 from .stability import stable_dt

@@ -66,7 +66,8 @@ from __future__ import annotations
 
 import casadi as ca
 
-from .characteristics import Crushable, Curve, TwoSided
+from .characteristics import Crushable, TwoSided
+from .curve_base import Curve
 
 __all__ = ["elastic_stiffness", "band", "memory_force", "band_force", "next_set",
            "free_deflection", "set_on_loading", "damper_force", "end_rate", "relaxed_deflection",

@@ -199,7 +199,7 @@ def animate(traj, scene, path, frames: int = DEFAULT_FRAMES, fps: int = DEFAULT_
     import matplotlib.pyplot as plt
     from matplotlib.animation import FuncAnimation, PillowWriter
 
-    from .results import replacing
+    from .output_files import replacing
 
     if isinstance(fps, bool) or not isinstance(fps, (int, np.integer)) or fps < 1:
         raise ValueError(f"`fps` must be a positive integer, got {fps!r}; e.g. 20.")
@@ -223,7 +223,7 @@ def draw_frame(traj, scene, path, time: float | None = None) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .results import replacing
+    from .output_files import replacing
 
     if time is None:
         k = int(np.argmax(np.linalg.norm(traj.force, axis=-1).sum(axis=1)))

@@ -66,7 +66,7 @@ from __future__ import annotations
 
 import casadi as ca
 
-from .characteristics import ZERO_DEFLECTION
+from .curve_base import ZERO_DEFLECTION
 from .contact_guards import at_least, at_most
 from .stroke_lock import axial_branches, stroke_rate
 

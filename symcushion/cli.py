@@ -13,7 +13,7 @@ from .interrupts import (EXIT_BAD_INPUT, EXIT_ERRORS, EXIT_INTERRUPTED,  # noqa:
                          EXIT_OUTPUT_EXISTS, EXIT_WARNINGS, Terminated, interrupt_code,
                          signals_handled)
 from .cli_parser import build_parser
-from .results import check_out_dir, check_output_file, claim_output
+from .output_files import check_out_dir, check_output_file, claim_output
 
 __all__ = ["main"]
 
@@ -331,7 +331,7 @@ DESIGN_FILES = ("result.json", "scenarios.csv", "before", "after", "before_after
 
 
 def _cmd_design(args):
-    from .results import remove_stale
+    from .output_files import remove_stale
     from .robust.study import load_robust_study, run_robust_study
 
     study = load_robust_study(args.study)
@@ -384,7 +384,7 @@ def _kept_batches(out, study) -> str:
 def _claim_study_folder(out, owned, args):
     """The output folder of an envelope study: new, resumed, or overwritten (checked first)."""
     from .envelope.runner import BATCH_DIR
-    from .results import OutputExists, claim_output, remove_stale
+    from .output_files import OutputExists, claim_output, remove_stale
 
     interrupted = (out / BATCH_DIR).is_dir()
     if args.resume and args.overwrite:
@@ -481,7 +481,7 @@ def main(argv=None) -> int:
 
 
 def _error_status(exc) -> int:
-    from .results import OutputExists
+    from .output_files import OutputExists
 
     return EXIT_OUTPUT_EXISTS if isinstance(exc, OutputExists) else EXIT_BAD_INPUT
 

@@ -40,8 +40,9 @@ from .codegen import _c_string
 from .fmu_variables import ENERGY_FIELDS, INPUTS, KINDS, fmu_variables, model_description
 from .layout import output_layout, state_layout
 from .quaternion import quat_to_rot_np
-from .results import check_output_file, replacing
-from .scene import Scene, load_scene
+from .output_files import check_output_file, replacing
+from .scene import load_scene
+from .scene_data import Scene
 from .touchdown import StepModel, build_model, initial_state
 from .trajectory import initial_output
 

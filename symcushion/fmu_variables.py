@@ -17,9 +17,9 @@ from dataclasses import dataclass
 import casadi as ca
 
 from . import __version__
-from .layout import (BODY_OUT_FIELDS, BODY_STATE_FIELDS, FOOTPAD_FIELD, LEG_GEOMETRY_FIELDS,
-                     MODES, SCENE_PARAM_FIELDS, TRIPOD_GEOMETRY_FIELDS, output_layout,
-                     state_layout)
+from .layout import BODY_OUT_FIELDS, BODY_STATE_FIELDS, MODES, output_layout, state_layout
+from .layout_params import (FOOTPAD_FIELD, LEG_GEOMETRY_FIELDS, SCENE_PARAM_FIELDS,
+                            TRIPOD_GEOMETRY_FIELDS)
 from .touchdown import StepModel
 
 __all__ = ["INPUTS", "KINDS", "ENERGY_FIELDS", "FmuVariable", "fmu_variables",

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .results import replacing, to_json
+from .output_files import replacing, to_json
 
 __all__ = ["matlab_name", "matlab_names", "to_matlab", "write_table_mat", "MATLAB_KEYWORDS",
            "NAME_LENGTH_MAX"]

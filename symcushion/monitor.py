@@ -4,9 +4,9 @@
 and reports, once per leg and kind with its first time, what no step should
 produce: penetration, a leg passing through the obstacle, the body centre
 inside it, non-finite state, energy growing beyond what the elements can
-supply, a foot in contact off a terrain grid. The checks before the run and
-the :class:`~symcushion.checks.Finding` it returns live in
-``symcushion.checks``.
+supply, a foot in contact off a terrain grid. The checks before the run live
+in ``symcushion.checks``, the :class:`~symcushion.findings.Finding` it
+returns in ``symcushion.findings``.
 
 It only inspects: it never changes a state and never drives the simulation
 (``symcushion.driver`` does, and feeds it). docs/checks.md lists every
@@ -16,9 +16,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .checks import BODY_TOLERANCE, Finding, _distances, _rotations, _world_points
+from .checks_obstacles import BODY_TOLERANCE
+from .findings import Finding, obstacle_distances, rotations, world_points
 from .obstacles import Terrain
-from .scene import Scene
+from .scene_data import Scene
 from .layout import output_layout, state_layout
 from .touchdown import initial_state
 from .validation import did_you_mean
@@ -183,8 +184,8 @@ class RunMonitor:
 
     def _check_geometry(self, out, t, X):
         scene, tol = self.scene, self.tolerances["penetration"]
-        pos, hinges, feet = _world_points(scene, X)
-        d_body = _distances(scene, pos).min(axis=0)
+        pos, hinges, feet = world_points(scene, X)
+        d_body = obstacle_distances(scene, pos).min(axis=0)
         allowed = self.tolerances["body"] * min(leg.length for leg in scene.legs)
         if np.min(d_body) < -allowed:
             i = int(np.argmax(d_body < -allowed))
@@ -192,13 +193,13 @@ class RunMonitor:
                       f"at t = {t[i]:.6g} s ({-d_body[i]:.3g} m deep): the legs did not hold it.",
                       value=-d_body[i])
         for j, leg in enumerate(scene.legs):
-            d_foot = _distances(scene, feet[j], leg.footpad).min(axis=0)
+            d_foot = obstacle_distances(scene, feet[j], leg.footpad).min(axis=0)
             if np.min(d_foot) < -tol:
                 i = int(np.argmax(d_foot < -tol))
                 self._add(out, "penetration", "warning", t[i], f"foot of leg {j} is "
                           f"{-d_foot[i]:.3g} m inside an obstacle at t = {t[i]:.6g} s (tolerance "
                           f"{tol:g} m).", leg=j, value=-d_foot[i])
-            d_hinge = _distances(scene, hinges[j]).min(axis=0)
+            d_hinge = obstacle_distances(scene, hinges[j]).min(axis=0)
             if np.min(d_hinge) < 0:
                 i = int(np.argmax(d_hinge < 0))
                 self._add(out, "pass_through", "error", t[i], f"leg {j} passed through the "
@@ -247,7 +248,7 @@ def _energy_supply(scene: Scene, x0) -> float:
     """Energy (J) the elements can give the body: elastic energy at x0 + |f(0)| × stroke."""
     supply = 0.0
     x = state_layout(len(scene.legs)).unpack(np.asarray(x0, dtype=float))
-    R = _rotations(x["attitude"][:, None])[0]
+    R = rotations(x["attitude"][:, None])[0]
     for j, leg in enumerate(scene.legs):
         in_contact = x["contact"][j] > 0.5
         rho = R.T @ (x["foot"][j] - x["position"]) if in_contact else leg.rest_foot

@@ -14,7 +14,7 @@ import casadi as ca
 import numpy as np
 
 from .obstacles import closest_obstacle
-from .scene import Scene
+from .scene_data import Scene
 
 __all__ = ["place_on_obstacle", "feet_clearance", "PLACEMENT_TOL"]
 

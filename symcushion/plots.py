@@ -144,7 +144,7 @@ def summary_figure(traj, path=None, title: str | None = None):
     fig.suptitle(title, fontsize=11)
     fig.tight_layout(rect=(0, 0, 1, 0.93))
     if path is not None:
-        from .results import replacing
+        from .output_files import replacing
 
         with replacing(Path(path)) as tmp:
             fig.savefig(tmp, dpi=DPI, format="png", metadata={"Software": None})

@@ -7,7 +7,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from .results import atomic_write_text
+from .output_files import atomic_write_text
 
 __all__ = ["write_section"]
 

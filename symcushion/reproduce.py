@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .results import atomic_write_text, check_out_dir, replacing
+from .output_files import atomic_write_text, check_out_dir, replacing
 from .scene import load_scene
 from .contact import METHODS
 from .driver import Trajectory, simulate

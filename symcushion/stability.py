@@ -5,18 +5,22 @@ This module owns the pose stiffness of the body against its feet held fixed
 (:func:`stable_dt`) and the fraction of that limit the adaptive driver
 allows (:data:`STABILITY_SAFETY`). It must not build or run the step
 (``symcushion.touchdown``, ``symcushion.driver``); it reads a built
-:class:`~symcushion.touchdown.StepModel` and caches its Function there.
+:class:`~symcushion.touchdown.StepModel` and keeps its Function there, as
+the model's derived Function ``body_stiffness``
+(:meth:`~symcushion.touchdown.StepModel.derived_function`). The legs'
+wrench is the step's own (``symcushion.body_step.legs_wrench``).
 """
 from __future__ import annotations
 
 import casadi as ca
 import numpy as np
 
-from .layout import state_layout
+from .body_step import legs_wrench
+from .layout import param_layout, state_layout
 from .quaternion import quat_exp, quat_to_rot, quat_to_rot_np
-from .touchdown import StepModel, _leg_params
+from .touchdown import StepModel
 
-__all__ = ["STABILITY_SAFETY", "stable_dt"]
+__all__ = ["STABILITY_SAFETY", "stable_dt", "body_stiffness"]
 
 #: Fraction of the explicit stability limit 2/ω_max (:func:`stable_dt`) that
 #: ``simulate(adaptive=True, stability=True)`` allows per step: ω_max Δt ≤ 1,
@@ -27,7 +31,7 @@ __all__ = ["STABILITY_SAFETY", "stable_dt"]
 STABILITY_SAFETY = 0.5
 
 
-def _body_stiffness(model: StepModel) -> ca.Function:
+def body_stiffness(model: StepModel) -> ca.Function:
     """``body_stiffness(x, p) -> K``: 6×6 stiffness of the body pose (world frame).
 
     K = −∂(ΣF_j, Στ_j)/∂(Δx, Δθ) at Δ = 0: the legs' force and moment on the
@@ -35,28 +39,34 @@ def _body_stiffness(model: StepModel) -> ca.Function:
     with every foot held where it is — a foot in contact at its stored point,
     a free foot at its unloaded position (as if it touched down there now, so
     that the estimate also covers the next touchdown). D_p enters by AD.
+    Built once per model (``model.derived_function("body_stiffness", …)``).
     """
-    if model._body_stiffness is None:
-        scene = model.scene
-        _, offsets = _leg_params(scene)
-        X = ca.SX.sym("x", model.nx)
-        p = ca.SX.sym("p", model.np)
-        z = ca.SX.sym("z", 6)
-        xl = state_layout(model.n_legs)
-        pos, R = xl.get(X, "position"), quat_to_rot(xl.get(X, "attitude"))
-        R_z = quat_to_rot(quat_exp(z[3:6])) @ R
-        pos_z = pos + z[0:3]
-        wrench = ca.SX.zeros(6)
-        for j, leg in enumerate(scene.legs):
-            held = ca.if_else(xl.get(X, "contact", j) > 0.5, xl.get(X, "foot", j),
-                              pos + R @ ca.DM(leg.rest_foot))
-            rho = R_z.T @ (held - pos_z)
-            P = leg.functions()["strut_force"](rho, ca.DM.zeros(3),
-                                               p[offsets[j][0]:offsets[j][1]])
-            wrench = wrench + ca.vertcat(R_z @ P, R_z @ ca.cross(rho, P))
-        K = ca.substitute(-ca.jacobian(wrench, z), z, ca.DM.zeros(6))
-        model._body_stiffness = ca.Function("body_stiffness", [X, p], [K], ["x", "p"], ["K"])
-    return model._body_stiffness
+    return model.derived_function("body_stiffness", _build_body_stiffness)
+
+
+#: The name this module's stiffness Function had before it was public.
+_body_stiffness = body_stiffness
+
+
+def _build_body_stiffness(model: StepModel) -> ca.Function:
+    scene = model.scene
+    params = param_layout(scene)
+    X = ca.SX.sym("x", model.nx)
+    p = ca.SX.sym("p", model.np)
+    z = ca.SX.sym("z", 6)
+    xl = state_layout(model.n_legs)
+    pos, R = xl.get(X, "position"), quat_to_rot(xl.get(X, "attitude"))
+    R_z = quat_to_rot(quat_exp(z[3:6])) @ R
+    pos_z = pos + z[0:3]
+    rho, P = [], []
+    for j, leg in enumerate(scene.legs):
+        held = ca.if_else(xl.get(X, "contact", j) > 0.5, xl.get(X, "foot", j),
+                          pos + R @ ca.DM(leg.rest_foot))
+        rho.append(R_z.T @ (held - pos_z))
+        P.append(leg.functions()["strut_force"](rho[-1], ca.DM.zeros(3), params.leg(p, j)))
+    wrench = ca.vertcat(*legs_wrench(rho, P, R_z))         # world axes
+    K = ca.substitute(-ca.jacobian(wrench, z), z, ca.DM.zeros(6))
+    return ca.Function("body_stiffness", [X, p], [K], ["x", "p"], ["K"])
 
 
 def stable_dt(model: StepModel, x, p=None) -> float:
@@ -64,7 +74,7 @@ def stable_dt(model: StepModel, x, p=None) -> float:
 
     ω_max² is the largest |eigenvalue| of M⁻¹K, with M = diag(m I, R I_b Rᵀ)
     the body's mass matrix and K its pose stiffness against feet held fixed
-    (:func:`_body_stiffness`). Velocity Verlet on ẍ = −ω²x is stable for
+    (:func:`body_stiffness`). Velocity Verlet on ẍ = −ω²x is stable for
     ω Δt < 2; a sliding foot is softer than a held one, so the estimate is
     conservative in slip. Returns ``inf`` when no leg resists (K = 0).
 
@@ -79,7 +89,7 @@ def stable_dt(model: StepModel, x, p=None) -> float:
     if x.shape != (model.nx,):
         raise ValueError(f"`x` must have shape ({model.nx},), got {x.shape}.")
     p = model.default_p if p is None else np.asarray(p, dtype=float)
-    K = np.asarray(_body_stiffness(model)(x, p), dtype=float)
+    K = np.asarray(body_stiffness(model)(x, p), dtype=float)
     R = quat_to_rot_np(state_layout(model.n_legs).get(x, "attitude"))
     body = model.scene.body
     M_inv = np.zeros((6, 6))

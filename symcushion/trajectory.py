@@ -109,7 +109,7 @@ class Trajectory:
             raise ValueError(f"{result_dir}: run.json does not give the gravity of the run; "
                              "rerun the scene.")
         gravity = np.asarray(gravity, dtype=float)
-        traj = _assemble(data, n_legs, gravity)
+        traj = assemble_trajectory(data, n_legs, gravity)
         traj.info = {k: v for k, v in meta.items() if k not in ("columns", "scene")}
         traj.info["scene"] = meta.get("scene")
         return traj
@@ -167,7 +167,7 @@ def _angle_from(vectors, axis):
     return np.arccos(np.clip(cos, -1.0, 1.0))
 
 
-def _assemble(rows, n_legs, gravity) -> Trajectory:
+def assemble_trajectory(rows, n_legs, gravity) -> Trajectory:
     """A :class:`Trajectory` from rows [t, x, y] (shape (T, 1 + nx + ny))."""
     rows = np.asarray(rows, dtype=float)
     T = len(rows)
@@ -260,4 +260,4 @@ def trajectory_from(model: StepModel, x0, X, Y, t) -> Trajectory:
     X = np.column_stack([x0, np.asarray(X, float)])
     Y = np.column_stack([initial_output(model, x0), np.asarray(Y, float)])
     rows = np.column_stack([np.asarray(t, float), X.T, Y.T])
-    return _assemble(rows, model.n_legs, model.scene.gravity)
+    return assemble_trajectory(rows, model.n_legs, model.scene.gravity)

@@ -1,25 +1,11 @@
 """The inverted-tripod (cantilever) landing leg: its geometry, foot force and stiffness.
 
 The gear of Apollo LM, Surveyor and Chang'e-3: a primary strut on a
-spherical joint at the hardpoint h₁ runs to the foot r; its outer cylinder,
-of fixed length ℓ_o, carries at Q = h₁ + ℓ_o e_S the pin of two secondary
-struts from the hardpoints h₂, h₃. With L = |r − h₁|, e_S = (r − h₁)/L,
-l_k = |Q − h_k| and u_k = (Q − h_k)/l_k, the generalised deflections are
-
-    q = (δ_S, δ₂, δ₃) = (L − L₀, l₂ − l₂₀, l₃ − l₃₀)
-
-(extension positive, compression negative, as δ_S of ``symcushion.strut``),
-each element resists with its curve f_i(q_i) and, by virtual work, the force
-on the foot *from the obstacle* that holds it at r (the paper's sign, as in
-(2.1)) is
-
-    P = Σᵢ f_i(q_i) ∇_r q_i = J(r)ᵀ f,          J = ∂q/∂r            (T1)
-
-the equilibrium of the massless primary about h₁ (docs/tripod.md). J comes
-from ``casadi.jacobian`` and D_p = ∂P/∂r from another, with the
-loading/unloading branches held as ``HingedStrut`` holds them. An element's
-branch is selected by the sign of q_i·q̇_i with q̇ = J v (v: the foot's
-velocity relative to the body).
+spherical joint at the hardpoint h₁ runs to the foot r, two secondary struts
+from the hardpoints h₂, h₃ to a pin Q on its outer cylinder. Its geometry
+(lengths, directions, the deflections q) is ``symcushion.tripod_geometry``,
+whose docstring derives the virtual-work law (T1) P = J(r)ᵀ f built here;
+the NumPy evaluation of the leg is ``symcushion.tripod_numeric``.
 
 Leg-scheme interface. A leg scheme is a class with ``param_names``,
 ``param_values``, ``rest_foot``, ``length``, ``hinge``, ``footpad``, ``elements`` and
@@ -30,10 +16,10 @@ v, p) -> Dp``. :class:`InvertedTripod` provides those three under the
 strut) besides its own ``tripod_*`` Functions built from the same
 expressions. It has no memory law (``axial_state`` is False).
 
-This module owns the tripod's geometry and the Functions built on it. It
-knows nothing of contact, of the body's motion or of scenes, and it must not
-import them; the geometry functions take the hardpoints and lengths as
-arguments so that they may become symbols.
+This module owns the leg: its elements and curves, their forces, the memory
+law's expressions, the singular-pose checks and the Functions built on the
+geometry. It knows nothing of contact, of the body's motion or of scenes,
+and it must not import them.
 """
 from __future__ import annotations
 
@@ -43,10 +29,13 @@ import casadi as ca
 import numpy as np
 
 from . import absorber
-from .characteristics import Curve
-from .layout import TRIPOD_GEOMETRY_FIELDS
+from .curve_base import Curve
+from .layout_params import TRIPOD_GEOMETRY_FIELDS
 from .leg_scheme import cached_memory_functions, curve_param_names, curve_param_values
 from .validation import real, vector
+from .tripod_geometry import (GEOMETRY_SIZE, ZERO_LENGTH, angle_from_parallel, numeric_geometry,
+                              tripod_deflections, tripod_geometry_expr, tripod_rest_lengths)
+from .tripod_numeric import TripodEvaluation
 
 __all__ = ["InvertedTripod", "SINGULAR_ANGLE", "ELEMENTS", "tripod_geometry_expr",
            "tripod_rest_lengths"]
@@ -64,53 +53,8 @@ SINGULAR_ANGLE = np.deg2rad(5.0)
 #: q(r) is nearly linear; three steps take the residual to round-off.
 FREE_FOOT_NEWTON_STEPS = 3
 
-#: Entries of a tripod's geometry block in ``p``: h₁, h₂, h₃, the rest foot, ℓ_o.
-GEOMETRY_SIZE = 13
-
 #: Element names, in the order of q, f and ``p``.
 ELEMENTS = ("primary", "secondary2", "secondary3")
-
-#: A secondary shorter than this fraction of the primary's rest length counts
-#: as of zero length: its direction u_k is then round-off.
-ZERO_LENGTH = 1e-9
-
-
-def tripod_geometry_expr(r, h1, h2, h3, outer_length):
-    """Lengths and directions of the tripod's elements at foot position ``r``.
-
-    Parameters
-    ----------
-    r, h1, h2, h3 : casadi.SX, MX or DM, shape (3,)
-        Foot position and hardpoints, body frame (m).
-    outer_length : float or casadi scalar
-        ℓ_o, length of the primary's outer cylinder from h₁ to the pin Q (m).
-
-    Returns
-    -------
-    dict
-        ``L`` (primary length), ``e_S`` (primary axis), ``Q`` (pin),
-        ``l`` (list of the two secondary lengths), ``u`` (their unit vectors
-        from h_k towards Q).
-    """
-    d = r - h1
-    L = ca.norm_2(d)
-    e_S = d / L
-    Q = h1 + outer_length * e_S
-    spans = [Q - h2, Q - h3]
-    lengths = [ca.norm_2(s) for s in spans]
-    units = [s / length for s, length in zip(spans, lengths)]
-    return dict(L=L, e_S=e_S, Q=Q, l=lengths, u=units)
-
-
-def tripod_rest_lengths(foot, h1, h2, h3, outer_length):
-    """Rest lengths (L₀, l₂₀, l₃₀) of the three elements with the foot at ``foot`` (m)."""
-    g = tripod_geometry_expr(foot, h1, h2, h3, outer_length)
-    return ca.vertcat(g["L"], *g["l"])
-
-
-def tripod_deflections(g, rest_lengths):
-    """q = (δ_S, δ₂, δ₃): element lengths minus rest lengths (m), extension positive."""
-    return ca.vertcat(g["L"], *g["l"]) - rest_lengths
 
 
 @dataclass(frozen=True)
@@ -120,23 +64,7 @@ class _Element:
     offset: int          # start of its parameters in p (tunable only)
 
 
-def _angle_from_parallel(a, b):
-    """Angle (rad, 0 to π/2) between the lines of a and b; 0 if either is zero."""
-    cross, dot = np.linalg.norm(np.cross(a, b)), abs(float(a @ b))
-    return float(np.arctan2(cross, dot)) if cross + dot > 0 else 0.0
-
-
-def _numeric_geometry(r, h1, h2, h3, outer_length):
-    """The geometry of :func:`tripod_geometry_expr` in NumPy (for checks)."""
-    d = r - h1
-    L = np.linalg.norm(d)
-    e_S = d / L
-    Q = h1 + outer_length * e_S
-    spans = [Q - h2, Q - h3]
-    return L, e_S, Q, spans
-
-
-class InvertedTripod:
+class InvertedTripod(TripodEvaluation):
     """Cantilever inverted-tripod leg: primary strut on h₁, two secondaries to its pin Q.
 
     Parameters
@@ -258,14 +186,14 @@ class InvertedTripod:
         length gives 0 for every angle it enters.
         """
         r = vector("r", r, (3,))
-        L, e_S, _, spans = _numeric_geometry(r, self.h1, self.h2, self.h3, self.outer_length)
+        L, e_S, _, spans = numeric_geometry(r, self.h1, self.h2, self.h3, self.outer_length)
         short = [np.linalg.norm(s) <= ZERO_LENGTH * self.length for s in spans]
         u = [np.zeros(3) if z else s / np.linalg.norm(s) for s, z in zip(spans, short)]
         across = [uk - (uk @ e_S) * e_S for uk in u]                   # parts ⊥ e_S
-        return dict(secondaries=_angle_from_parallel(u[0], u[1]),
-                    secondary2_primary=_angle_from_parallel(u[0], e_S),
-                    secondary3_primary=_angle_from_parallel(u[1], e_S),
-                    plane=_angle_from_parallel(across[0], across[1]))
+        return dict(secondaries=angle_from_parallel(u[0], u[1]),
+                    secondary2_primary=angle_from_parallel(u[0], e_S),
+                    secondary3_primary=angle_from_parallel(u[1], e_S),
+                    plane=angle_from_parallel(across[0], across[1]))
 
     def check_pose(self, r) -> float:
         """The smallest angle (rad) of :meth:`pose_angles` at foot position ``r``.
@@ -276,7 +204,7 @@ class InvertedTripod:
         return min(self.pose_angles(r).values())
 
     def _check_rest_pose(self):
-        _, _, Q, spans = _numeric_geometry(self.foot, self.h1, self.h2, self.h3,
+        _, _, Q, spans = numeric_geometry(self.foot, self.h1, self.h2, self.h3,
                                            self.outer_length)
         for k, span in zip((2, 3), spans):
             if np.linalg.norm(span) <= ZERO_LENGTH * self.length:
@@ -302,7 +230,7 @@ class InvertedTripod:
     def _dm_geometry(self, r):
         return (r, ca.DM(self.h1), ca.DM(self.h2), ca.DM(self.h3), self.outer_length)
 
-    # -- geometry as inputs (symcushion.layout.TRIPOD_GEOMETRY_FIELDS) -----------------
+    # -- geometry as inputs (symcushion.layout_params.TRIPOD_GEOMETRY_FIELDS) -----------------
     geometry_fields = TRIPOD_GEOMETRY_FIELDS
 
     @property
@@ -481,67 +409,4 @@ class InvertedTripod:
                                                      names_in, ["Dp"])
         out["tripod_element_forces"] = ca.Function("tripod_element_forces", [r, v, p],
                                                    [f[0], f[1:]], names_in, ["S", "T"])
-        return out
-
-    # -- numeric convenience ------------------------------------------------------
-    def _check_r(self, r):
-        r = vector("r", r, (3,))
-        if np.linalg.norm(r - self.h1) < ZERO_LENGTH * self.length:
-            raise ValueError(f"`r` = {r.tolist()} is at the hardpoint h1 {self.h1.tolist()}: "
-                             "the primary's axis is undefined; give a foot position away "
-                             "from it.")
-        return r
-
-    def _p(self, p):
-        if p is None:
-            return self.param_values
-        p = np.asarray(p, dtype=float).ravel()
-        if p.size != len(self.param_names):
-            raise ValueError(f"`p` must have {len(self.param_names)} entries "
-                             f"{self.param_names}, got {p.size}.")
-        return p
-
-    def _call(self, name, r, v, p):
-        out = self.functions()[name](self._check_r(r), vector("v", v, (3,)), self._p(p))
-        return np.asarray(out, dtype=float)
-
-    def force(self, r, v=(0.0, 0.0, 0.0), p=None) -> np.ndarray:
-        """P(r) of (T1) as a NumPy array, shape (3,) (N); validates its inputs."""
-        return self._call("tripod_force", r, v, p).ravel()
-
-    def stiffness(self, r, v=(0.0, 0.0, 0.0), p=None) -> np.ndarray:
-        """D_p = ∂P/∂r by AD, shape (3, 3) (N/m)."""
-        return self._call("tripod_stiffness", r, v, p)
-
-    def strokes(self, r) -> np.ndarray:
-        """q = (δ_S, δ₂, δ₃) at foot position ``r``, shape (3,) (m)."""
-        geo = self.functions()["tripod_geometry"].call(dict(r=self._check_r(r)))
-        return np.concatenate([np.asarray(geo["delta_S"]).ravel(),
-                               np.asarray(geo["stroke_secondary"]).ravel()])
-
-    def forces(self, r, v=(0.0, 0.0, 0.0), p=None) -> np.ndarray:
-        """f = (S, T₂, T₃) at foot position ``r``, shape (3,) (N)."""
-        fn = self.functions()["tripod_element_forces"]
-        out = fn.call(dict(r=self._check_r(r), v=vector("v", v, (3,)), p=self._p(p)))
-        return np.concatenate([np.asarray(out["S"]).ravel(), np.asarray(out["T"]).ravel()])
-
-    def rest_stiffness_closed_form(self) -> np.ndarray:
-        """D_p at the unloaded rest pose by hand, in NumPy, shape (3, 3) (N/m).
-
-        D_p = k_P e_S e_Sᵀ + Σ_k k_k g_k g_kᵀ, g_k = (ℓ_o/L₀)(I − e_S e_Sᵀ) u_k
-        (∂δ_k/∂r, docs/tripod.md), k_i the loading slopes at zero deflection.
-        The geometric terms f_i ∇²q_i vanish because every f_i(0) is zero;
-        a curve with a preload is refused.
-        """
-        L, e_S, _, spans = _numeric_geometry(self.foot, self.h1, self.h2, self.h3,
-                                             self.outer_length)
-        across = np.eye(3) - np.outer(e_S, e_S)
-        grads = [e_S] + [self.outer_length / L * across @ (s / np.linalg.norm(s))
-                         for s in spans]
-        out = np.zeros((3, 3))
-        for el, grad in zip(self.elements, grads):
-            if abs(el.curve.force(0.0)) > 0:
-                raise ValueError(f"`{el.name}` carries {el.curve.force(0.0):g} N at rest: the "
-                                 "closed form holds at zero load only; use `stiffness`.")
-            out += el.curve.slope(0.0) * np.outer(grad, grad)
         return out

@@ -23,7 +23,8 @@ import numpy as np
 
 from .animate import ARROW_FRACTION, MODE_COLORS, _bounds, _hinges, _surface, frame_indices
 from .chromium import BROWSERS, Chromium, browser
-from .results import JSON_NAME, check_output_file
+from .output_files import check_output_file
+from .results import JSON_NAME
 
 __all__ = ["load_run", "viewer_figure", "write_viewer", "screenshots",
            "DEFAULT_VIEW_FRAMES", "MAX_PLOT_POINTS", "VIEWER_NAME", "TIME_HOOK", "INSTALL_HINT"]
@@ -322,7 +323,7 @@ def write_viewer(result_dir, out=None, frames: int = DEFAULT_VIEW_FRAMES) -> Pat
     -------
     Path
     """
-    from .results import atomic_write_text
+    from .output_files import atomic_write_text
 
     _plotly()                               # before any work: say how to install it
     _check_result_dir(result_dir)           # before --out's default is made in it
@@ -384,7 +385,7 @@ def screenshots(page, times, pngs, size=SCREENSHOT_SIZE, timeout: float = 120.0)
     """
     import base64
 
-    from .results import replacing
+    from .output_files import replacing
 
     page = Path(page).resolve()
     if not page.is_file():

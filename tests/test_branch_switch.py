@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import symcushion.touchdown as touchdown
+import symcushion.touchdown_events as touchdown
 from symcushion.optimise import study_from_dict
 from symcushion.layout import state_layout
 from symcushion.scene import SceneError, load_scene, read_toml, scene_from_dict

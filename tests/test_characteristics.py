@@ -17,7 +17,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from symcushion import Crushable, Curve, Linear, PiecewiseLinear
-from symcushion.characteristics import KINK_WIDTH, RATE_WIDTH
+from symcushion.curve_base import KINK_WIDTH, RATE_WIDTH
 
 #: Relative agreement of two evaluations of the same expression (float vs
 #: SX vs MX, hand slope vs casadi.jacobian): a few ulps of the curve's scale.
@@ -493,7 +493,7 @@ def test_zero_deflection_loads_whatever_the_sign_of_the_rate():
     """A strut's unloaded pose carries round-off deflections (1e-16) of either sign:
     from there the element can only load, so the loading branch is taken even
     where x·ẋ < 0 by that round-off; past ZERO_DEFLECTION the test is x·ẋ again."""
-    from symcushion.characteristics import ZERO_DEFLECTION
+    from symcushion.curve_base import ZERO_DEFLECTION
     curve = Crushable(1e5, 2500.0, 5e3, unloading=PiecewiseLinear([-0.3, -0.03, 0.0],
                                                                    [-500.0, -500.0, 0.0]))
     loading, unloading = 1e5, 500.0 / 0.03

@@ -318,7 +318,7 @@ def test_the_outer_loop_keeps_the_round_with_the_best_held_out_p_stable(tmp_path
 
 
 def test_with_the_energy_check_the_tilt_only_gates_it():
-    from symcushion.robust.problem import design_checks
+    from symcushion.robust.risk import design_checks
     limits = dict(tip_over=0.6, tip_energy=0.1, stroke=0.25, beta=None, gamma=None,
                   deceleration=80.0, rebound=0.5, moving=0.05)
     assert design_checks(limits) == ["tip_energy", "stroke", "deceleration", "rebound",

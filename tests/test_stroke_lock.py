@@ -24,7 +24,7 @@ from symcushion.layout import state_layout
 from symcushion.quaternion import quat_to_rot_np
 from symcushion.scene import load_scene, read_toml, scene_from_dict
 from symcushion.simulate import build_model, initial_state, simulate
-from symcushion import touchdown
+from symcushion import touchdown_events as touchdown
 from symcushion.stroke_lock import (LOCKED, UNLOADING, axial_branches, newton_masked, skip_unless,
                                      solve_masked)
 

@@ -25,7 +25,7 @@ import numpy as np
 import pytest
 
 from symcushion import Crushable, HingedStrut, Linear, PiecewiseLinear
-from symcushion.characteristics import RATE_WIDTH
+from symcushion.curve_base import RATE_WIDTH
 from symcushion.strut import RIGID_AXIAL_RATIO, SINGULAR_ANGLE
 
 EPS = np.finfo(float).eps

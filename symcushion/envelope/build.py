@@ -19,7 +19,8 @@ import numpy as np
 
 from ..cbuild import CFLAGS, WARNINGS
 from ..codegen import compile_cached, find_compiler
-from ..scene import Scene, scene_from_dict
+from ..scene import scene_from_dict
+from ..scene_data import Scene
 from ..touchdown import build_model
 from .cases import envelope_function, SUMMARY
 

@@ -11,10 +11,11 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from ..layout import default_p, param_layout, state_layout
+from ..layout import state_layout
+from ..layout_params import default_p, param_layout
 from ..quaternion import quat_from_axis_angle_np, quat_mul_np, quat_to_rot_np
 from ..measures import measures_function
-from ..scene import Scene
+from ..scene_data import Scene
 from ..touchdown import StepModel
 from .study import EnvelopeStudy
 

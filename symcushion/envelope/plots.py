@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..results import atomic_write_text, replacing
+from ..output_files import atomic_write_text, replacing
 from .build import _safe
 from .classify import CLASSES
 from .statistics import _slope_bins, CONFIDENCE, EnvelopeResult, wilson_interval

@@ -20,8 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from ..matlab import write_table_mat
-from ..results import atomic_write_text, replacing
-from ..scene import Scene
+from ..output_files import atomic_write_text, replacing
+from ..scene_data import Scene
 from .build import _dask_batch, _safe, build_envelope, DEFAULT_CACHE, run_batch
 from .cases import apply_design, case_params, initial_states, reach, SUMMARY
 from .classify import classify

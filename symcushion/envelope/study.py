@@ -18,7 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from ..obstacles import Plane
-from ..scene import Scene, _Table, read_toml, scene_from_dict
+from ..scene import _Table, read_toml, scene_from_dict
+from ..scene_data import Scene
 from .sampling import MAX_SOBOL_DIMENSIONS
 
 __all__ = ["VARIABLES", "MAX_SLOPE_DEG", "DEFAULT_BATCH", "DEFAULT_CLEARANCE", "DEFAULT_REST_SPEED",

@@ -17,7 +17,51 @@ from ..measures import measures_function
 from .geometry import PRACTICAL_KINDS
 from .spec import _Block, _up, VIOLATION_TOL
 
-__all__: list = []
+__all__: list = ["DESIGN_OUTPUTS", "design_outputs_of"]
+
+#: What ``design_outputs(w)`` stacks per scenario, in this order (n steps, N legs): the
+#: vertical specific force (n), each leg's stroke, hinge azimuth and polar deflection
+#: (N rows of n each), 1 − cos of the tilt (n) and the final upward speed (1). Stacked by
+#: :func:`_stack_design_outputs`, read back only by :func:`design_outputs_of`.
+DESIGN_OUTPUTS = ("acc", "strokes", "betas", "gammas", "tilt", "v_up")
+
+
+def _design_output_rows(name: str, n_legs: int):
+    """How many rows of n values entry ``name`` stacks; None: one (not a list of legs)."""
+    return n_legs if name in ("strokes", "betas", "gammas") else None
+
+
+def _stack_design_outputs(measure: dict) -> ca.MX:
+    """One scenario's :data:`DESIGN_OUTPUTS` from its measures, as one column."""
+    parts = []
+    for name in DESIGN_OUTPUTS:
+        value = measure[name]
+        parts += [ca.vec(v) for v in value] if isinstance(value, list) else [ca.vec(value)]
+    return ca.vertcat(*parts)
+
+
+def design_outputs_of(y, shapes) -> list:
+    """The values of ``design_outputs(w)``, ``y``, split into one dict per scenario of its
+    :data:`DESIGN_OUTPUTS` by name: arrays of n steps (a list of them per leg for the
+    strokes and angles), the upward speed a float. ``shapes``: (n steps, N legs) of each
+    scenario."""
+    y = np.asarray(y, dtype=float).ravel()
+    out, offset = [], 0
+    for n, n_legs in shapes:
+        entry = {}
+        for name in DESIGN_OUTPUTS:
+            rows, width = _design_output_rows(name, n_legs), 1 if name == "v_up" else n
+            count = width * (1 if rows is None else rows)
+            block = y[offset:offset + count]
+            offset += count
+            if name == "v_up":
+                entry[name] = float(block[0])
+            elif rows is None:
+                entry[name] = block
+            else:
+                entry[name] = [block[i * width:(i + 1) * width] for i in range(rows)]
+        out.append(entry)
+    return out
 
 
 
@@ -70,10 +114,7 @@ class _Constraints:
         self.ubg = np.concatenate([np.full(b.stop - b.start, b.upper) for b in blocks])
         self._fg = ca.Function("design_fg", [self.nlp["x"]], [self.nlp["f"], g], ["x"],
                                ["f", "g"])
-        self._outputs_expr = ca.vertcat(*[ca.vertcat(
-            ca.vec(m["acc"]), *[ca.vec(d) for d in m["strokes"]],
-            *[ca.vec(b) for b in m["betas"]], *[ca.vec(c) for c in m["gammas"]],
-            ca.vec(m["tilt"]), m["v_up"]) for m in self._measure])
+        self._outputs_expr = ca.vertcat(*[_stack_design_outputs(m) for m in self._measure])
         self._outputs = ca.Function("design_outputs", [w], [self._outputs_expr], ["w"], ["y"])
 
     def use_compiled(self, cache_dir=None, progress=False, **options):

@@ -21,7 +21,7 @@ from ..layout import state_layout
 from ..quaternion import quat_to_rot_np
 from ..obstacles import closest_obstacle
 from ..touchdown import build_model, initial_state
-from .constraints import _Constraints
+from .constraints import _Constraints, design_outputs_of
 from .gradient import _GradientCheck
 from .space import _DesignSpace
 from .progress import _IterationCallback
@@ -194,19 +194,13 @@ class DesignProblem(_DesignSpace, _Constraints, _GradientCheck):
             raise ValueError(f"`theta` must have {self.n_variables} entries {self.var_names}, "
                              f"got {theta.size}.")
         w = theta / self.scale
-        y = np.asarray(self._outputs(w), dtype=float).ravel()
-        scenarios, offset = {}, 0
+        y = design_outputs_of(self._outputs(w), [(s.scene.steps, model.n_legs)
+                                                 for s, model in zip(self.scenarios, self.models)])
+        scenarios = {}
         peaks, strokes = [], []
-        for s, model, m in zip(self.scenarios, self.models, self._measure):
-            n, nl = s.scene.steps, model.n_legs
-            acc = y[offset:offset + n]
-            offset += n
-            parts = [y[offset + i * n: offset + (i + 1) * n] for i in range(3 * nl)]
-            offset += 3 * nl * n
-            stroke, beta, gamma = parts[:nl], parts[nl:2 * nl], parts[2 * nl:]
-            tilt = y[offset:offset + n]
-            v_up = float(y[offset + n])
-            offset += n + 1
+        for s, m, out in zip(self.scenarios, self._measure, y):
+            acc, stroke, beta, gamma = out["acc"], out["strokes"], out["betas"], out["gammas"]
+            tilt, v_up = out["tilt"], out["v_up"]
             info = dict(
                 peak_deceleration=float(np.max(acc)),
                 max_stroke=float(max((np.max(np.abs(stroke[j])) for j in m["axial"]),

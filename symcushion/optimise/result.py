@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..results import atomic_write_text, jsonable
+from ..output_files import atomic_write_text, jsonable
 from .geometry import PRACTICAL_KINDS
 from .spec import Evaluation
 

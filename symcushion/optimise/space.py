@@ -19,7 +19,8 @@ import math
 import casadi as ca
 import numpy as np
 
-from ..characteristics import Curve, PiecewiseLinear
+from ..characteristics import PiecewiseLinear
+from ..curve_base import Curve
 from .geometry import _GeometryDesign
 from .spec import _real, CurveShape, DesignVariable
 

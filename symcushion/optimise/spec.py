@@ -13,7 +13,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..scene import Scene
+from ..scene_data import Scene
 
 __all__ = ["OBJECTIVES", "VIOLATION_TOL", "Scenario", "DesignVariable", "CurveShape", "Limits",
            "Evaluation"]

@@ -18,7 +18,8 @@ import numpy as np
 from ..cbuild import find_compiler
 from ..quaternion import quat_to_rot_np
 from ..obstacles import closest_obstacle
-from ..scene import Scene, _Table, read_toml, scene_from_dict
+from ..scene import _Table, read_toml, scene_from_dict
+from ..scene_data import Scene
 from ..touchdown import initial_state
 from .geometry import GEOMETRY_QUANTITIES, GeometryVariable, PracticalLimits
 from .problem import DesignProblem

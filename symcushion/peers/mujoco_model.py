@@ -39,7 +39,7 @@ import numpy as np
 
 from ..characteristics import Linear
 from ..obstacles import Plane, Sphere
-from ..scene import Scene
+from ..scene_data import Scene
 from ..layout import state_layout
 from .run import (PeerRun, check_scene, leg_kinematics, output_times, positive, quat_to_rot_np,
                   state_vector)
@@ -333,6 +333,74 @@ def _foot_distance(scene: Scene, foot) -> np.ndarray:
     return dist
 
 
+def _start_model(mujoco, scene, xml, springs, x0):
+    """The MuJoCo model of ``xml`` and its data at the initial state ``x0`` (joint
+    angles solved from the feet; an axial joint only where ``springs`` has one),
+    forwarded; and the qpos addresses of each leg's (γ, β) joints, shape (N, 2)."""
+    pos0, vel0, quat0, omega0, legs0 = _joint_state(scene, x0)
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    data.qpos[0:3], data.qpos[3:7] = pos0, quat0
+    data.qvel[0:3], data.qvel[3:6] = vel0, omega0
+    for j, (th_g, th_b, stroke) in enumerate(legs0):
+        data.qpos[model.jnt_qposadr[model.joint(f"leg{j}_gamma").id]] = th_g
+        data.qpos[model.jnt_qposadr[model.joint(f"leg{j}_beta").id]] = th_b
+        if springs[j][2] is not None:
+            data.qpos[model.jnt_qposadr[model.joint(f"leg{j}_axial").id]] = stroke
+    angle_adr = np.array([[model.jnt_qposadr[model.joint(f"leg{j}_{n}").id]
+                           for n in ("gamma", "beta")] for j in range(len(scene.legs))])
+    mujoco.mj_forward(model, data)
+    return model, data, angle_adr
+
+
+def _step_and_sample(mujoco, model, data, T, substeps, foot_ids):
+    """``T`` samples, the first at the start, each after ``substeps`` MuJoCo steps:
+    ``qpos``, ``qvel``, ``acc`` (the body's linear acceleration), ``foot`` and
+    ``foot_vel`` (the feet's positions and linear velocities, world frame); and
+    the wall and process CPU seconds of the stepping loop."""
+    N = len(foot_ids)
+    qpos = np.empty((T, model.nq))
+    qvel = np.empty((T, model.nv))
+    acc = np.empty((T, 3))
+    foot = np.empty((T, N, 3))
+    foot_vel = np.empty((T, N, 3))
+    twist = np.empty(6)
+
+    def record(k):
+        qpos[k], qvel[k] = data.qpos, data.qvel
+        acc[k] = data.qacc[0:3]         # free joint: linear acceleration of the CoM, world
+        foot[k] = data.geom_xpos[foot_ids]
+        for j, g in enumerate(foot_ids):
+            mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_GEOM, g, twist, 0)
+            foot_vel[k, j] = twist[3:6]     # (angular, linear), world frame
+
+    started, cpu_started = time.perf_counter(), time.process_time()
+    record(0)
+    for k in range(1, T):
+        for _ in range(substeps):
+            mujoco.mj_step(model, data)
+        # mj_step leaves qacc of the step's start; evaluate it at the sample
+        mujoco.mj_forward(model, data)
+        record(k)
+    wall_seconds = time.perf_counter() - started
+    cpu_seconds = time.process_time() - cpu_started
+    samples = dict(qpos=qpos, qvel=qvel, acc=acc, foot=foot, foot_vel=foot_vel)
+    return samples, wall_seconds, cpu_seconds
+
+
+def _check_stable(mujoco, data, qpos, scene, s):
+    """Refuse a run in which MuJoCo reset a bad state or that went non-finite."""
+    bad = [w for w in ("mjWARN_BADQACC", "mjWARN_BADQPOS", "mjWARN_BADQVEL")
+           if data.warning[getattr(mujoco.mjtWarning, w)].number > 0]
+    if bad or not np.all(np.isfinite(qpos)):
+        # MuJoCo resets the state after a bad acceleration and carries on; a run
+        # with such a reset is not a simulation of the scene
+        raise FloatingPointError(
+            f"MuJoCo went unstable on scene {scene.name!r} ({', '.join(bad) or 'non-finite'}; "
+            f"timestep {s['timestep']:g} s, solref {s['solref'].tolist()}): reduce `timestep` "
+            "or raise the solref time constant to at least 2·timestep.")
+
+
 def mujoco_simulate(scene: Scene, *, timestep=None, solref=None, solimp=None, foot_mass=None,
                     output_dt=None, x0=None, rigid_axial: str = "rigid",
                     integrator: str = INTEGRATOR) -> PeerRun:
@@ -384,59 +452,18 @@ def mujoco_simulate(scene: Scene, *, timestep=None, solref=None, solimp=None, fo
     xml, s = build_mjcf(scene, timestep=timestep, solref=solref, solimp=solimp,
                         foot_mass=foot_mass, output_dt=output_dt, rigid_axial=rigid_axial,
                         integrator=integrator)
-    pos0, vel0, quat0, omega0, legs0 = _joint_state(scene, x0)
-    model = mujoco.MjModel.from_xml_string(xml)
-    data = mujoco.MjData(model)
+    model, data, angle_adr = _start_model(mujoco, scene, xml, s["springs"], x0)
     body_id = model.body("body").id
     foot_ids = np.array([model.geom(f"leg{j}_foot").id for j in range(len(scene.legs))])
-    data.qpos[0:3], data.qpos[3:7] = pos0, quat0
-    data.qvel[0:3], data.qvel[3:6] = vel0, omega0
-    for j, (th_g, th_b, stroke) in enumerate(legs0):
-        data.qpos[model.jnt_qposadr[model.joint(f"leg{j}_gamma").id]] = th_g
-        data.qpos[model.jnt_qposadr[model.joint(f"leg{j}_beta").id]] = th_b
-        if s["springs"][j][2] is not None:
-            data.qpos[model.jnt_qposadr[model.joint(f"leg{j}_axial").id]] = stroke
-    angle_adr = np.array([[model.jnt_qposadr[model.joint(f"leg{j}_{n}").id]
-                           for n in ("gamma", "beta")] for j in range(len(scene.legs))])
-    mujoco.mj_forward(model, data)
     build_seconds = time.perf_counter() - started
 
     t = s["times"]
     T, N = len(t), len(scene.legs)
-    qpos = np.empty((T, model.nq))
-    qvel = np.empty((T, model.nv))
-    acc = np.empty((T, 3))
-    foot = np.empty((T, N, 3))
-    foot_vel = np.empty((T, N, 3))
-    twist = np.empty(6)
-
-    def record(k):
-        qpos[k], qvel[k] = data.qpos, data.qvel
-        acc[k] = data.qacc[0:3]         # free joint: linear acceleration of the CoM, world
-        foot[k] = data.geom_xpos[foot_ids]
-        for j, g in enumerate(foot_ids):
-            mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_GEOM, g, twist, 0)
-            foot_vel[k, j] = twist[3:6]     # (angular, linear), world frame
-
-    started, cpu_started = time.perf_counter(), time.process_time()
-    record(0)
-    for k in range(1, T):
-        for _ in range(s["substeps"]):
-            mujoco.mj_step(model, data)
-        # mj_step leaves qacc of the step's start; evaluate it at the sample
-        mujoco.mj_forward(model, data)
-        record(k)
-    wall_seconds = time.perf_counter() - started
-    cpu_seconds = time.process_time() - cpu_started
-    bad = [w for w in ("mjWARN_BADQACC", "mjWARN_BADQPOS", "mjWARN_BADQVEL")
-           if data.warning[getattr(mujoco.mjtWarning, w)].number > 0]
-    if bad or not np.all(np.isfinite(qpos)):
-        # MuJoCo resets the state after a bad acceleration and carries on; a run
-        # with such a reset is not a simulation of the scene
-        raise FloatingPointError(
-            f"MuJoCo went unstable on scene {scene.name!r} ({', '.join(bad) or 'non-finite'}; "
-            f"timestep {s['timestep']:g} s, solref {s['solref'].tolist()}): reduce `timestep` "
-            "or raise the solref time constant to at least 2·timestep.")
+    samples, wall_seconds, cpu_seconds = _step_and_sample(mujoco, model, data, T, s["substeps"],
+                                                          foot_ids)
+    qpos, qvel, acc, foot, foot_vel = (samples[k] for k in ("qpos", "qvel", "acc", "foot",
+                                                             "foot_vel"))
+    _check_stable(mujoco, data, qpos, scene, s)
     quat = qpos[:, 3:7] / np.linalg.norm(qpos[:, 3:7], axis=1, keepdims=True)
     contact = _foot_distance(scene, foot) < 0
     stroke, deflection = leg_kinematics(scene, qpos[:, 0:3], quat, foot)

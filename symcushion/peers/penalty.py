@@ -37,10 +37,10 @@ import casadi as ca
 import numpy as np
 
 from ..obstacles import ImplicitSurface, Plane, Sphere
-from ..scene import Scene
-from ..layout import state_layout
+from ..scene_data import Scene
+from ..layout import BODY_STATE, BODY_STATE_FIELDS, state_layout
 from ..quaternion import quat_mul, quat_to_rot
-from ..layout import BODY_STATE, BODY_STATE_FIELDS, Field, VectorLayout
+from ..vector_fields import Field, VectorLayout
 from .run import (PeerRun, check_scene, leg_kinematics, nonnegative, output_times, positive,
                   quat_to_rot_np, state_vector)
 

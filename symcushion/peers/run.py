@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..quaternion import quat_to_rot_np
-from ..scene import Scene
+from ..scene_data import Scene
 from ..touchdown import initial_state
 
 __all__ = ["PeerRun", "output_times", "leg_kinematics", "trajectory_deflection",

@@ -8,14 +8,16 @@ Monte Carlo envelope (docs/optimise.md, "Design for the envelope").
 
 Modules: :mod:`.margins` (the smooth value/limit of each check over a
 horizon), :mod:`.evaluate` (compiled scenarios and their Jacobian),
-:mod:`.problem` (the NLP and its solve), :mod:`.select` (choosing
+:mod:`.problem` (the NLP and its solve), :mod:`.risk` (the loss and
+its risk measures), :mod:`.result` (the outcome), :mod:`.select` (choosing
 scenarios), :mod:`.study` (the study file and the sample–select–optimise–
 verify loop), :mod:`.plots` (before/after figures).
 """
 from .margins import CHECKS, DEFAULT_SHARPNESS, margins_function
 from .evaluate import build_margins, ScenarioRatios
-from .problem import (RISKS, DEFAULT_ALPHA, DEFAULT_SATURATION, DEFAULT_HORIZON, saturate,
-                      EnvelopeDesign, RobustResult)
+from .problem import EnvelopeDesign
+from .result import RobustResult
+from .risk import RISKS, DEFAULT_ALPHA, DEFAULT_SATURATION, DEFAULT_HORIZON, saturate
 
 __all__ = ["CHECKS", "DEFAULT_SHARPNESS", "margins_function", "build_margins",
            "ScenarioRatios", "RISKS", "DEFAULT_ALPHA", "DEFAULT_SATURATION", "DEFAULT_HORIZON",

@@ -2,22 +2,11 @@
 
 Owns :class:`EnvelopeDesign`: the scenario NLP over the legs' tunable curve
 parameters with a risk measure of the scenarios' losses as objective, its
-scaling, start, Ipopt solve, multipliers and result. Per scenario s and
-check c the loss is L_sc = sat(r_sc) − 1, with r_sc the smooth value/limit of
-:mod:`.margins` (> 0 fails) and sat the identity up to 1 that then levels
-off smoothly at ``saturation``::
-
-    sat(r) = r                                           r ≤ 1
-    sat(r) = 1 + (R − 1)·tanh((r − 1)/(R − 1))           r > 1
-
-so that a scenario far beyond a limit (a tip-over the legs cannot prevent)
-stops pulling the design; it is C² at r = 1. Risk measures of the scenario
-loss L_s = max_c L_sc, each exact through an epigraph (no max is formed):
-
-* ``cvar``: the conditional value at risk at level α (Rockafellar–Uryasev),
-  min η + Σ_s u_s/((1 − α)·S) with u_s ≥ L_sc − η for every c and u_s ≥ 0:
-  the mean loss of the worst (1 − α) share of the scenarios;
-* ``worst``: min η with η ≥ L_sc for every s and c.
+scaling, start, Ipopt solve and multipliers. The scenario loss
+L_sc = sat(r_sc) − 1 of each scenario s and check c, with r_sc the smooth
+value/limit of :mod:`.margins`, and its risk measures (``cvar``, ``worst``),
+each exact through an epigraph, are set out in :mod:`.risk`; the result
+record is :mod:`.result`.
 
 The scenarios' ratios and their Jacobian run in compiled C on threads or
 Dask (:mod:`.evaluate`); variables and curve shapes come from
@@ -30,7 +19,6 @@ from __future__ import annotations
 import math
 import os
 import time
-from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
@@ -46,35 +34,12 @@ from ..touchdown import build_model
 from ..optimise.geometry import PRACTICAL_KINDS
 from .evaluate import build_margins, design_margins, ScenarioRatios
 from .margins import CHECKS, DEFAULT_SHARPNESS
+from .result import RobustResult
+from .risk import (DEFAULT_ALPHA, DEFAULT_HORIZON, DEFAULT_SATURATION, DEFAULT_TIP_ENERGY, RISKS,
+                   design_checks, saturate)
 
-__all__ = ["RISKS", "DEFAULT_ALPHA", "DEFAULT_SATURATION", "DEFAULT_HORIZON", "saturate",
-           "EnvelopeDesign", "RobustResult"]
+__all__ = ["EnvelopeDesign"]
 
-#: Risk measures of the scenario losses.
-RISKS = ("cvar", "worst")
-#: CVaR level: the mean loss of the worst half of the scenarios. The scenarios
-#: are chosen near and beyond the boundary of the stable region, so the worse
-#: half are those a design can still turn; α → 1 approaches ``worst``.
-DEFAULT_ALPHA = 0.5
-#: Level R at which sat(r) levels off: a ratio three times its limit is lost
-#: whatever the design does; its gradient is then below 1e-3 of a ratio's
-#: near the limit (sech²(5) once r is 11).
-DEFAULT_SATURATION = 3.0
-#: Unit of the tip-over energy margin in a study with a tilt limit (m of
-#: lift of the centre of mass; ``tip_surplus`` of symcushion.measures): the
-#: ``tip_energy`` ratio is 1 + surplus/unit, 1 when the body has just the
-#: energy to pass over an edge of its support polygon (the rigid-pivot
-#: criterion, on the safe side: the pivot legs' strokes take energy out).
-#: 0.1 m spreads the example lander's stable touchdowns over ratios of about
-#: 0 to 1.4 (docs/optimise.md); a study may set another with
-#: ``robust.tip_energy``.
-DEFAULT_TIP_ENERGY = 0.1
-#: Horizon of a scenario when none is given: the envelope study's own
-#: duration, so that the at-rest check is taken where the verification takes
-#: it (a lander that tips goes past the 35° limit within about a second of
-#: touchdown on the example study, docs/envelope.md, so any horizon from
-#: ~1.5 s decides tip-overs; resting needs the full 2 s).
-DEFAULT_HORIZON = None
 #: Ipopt options of the envelope design: the design package's defaults with a
 #: looser tolerance (the losses are smooth stand-ins for classes, so 1e-6 of
 #: their scale is far below what changes a class) and fewer iterations.
@@ -83,90 +48,6 @@ DEFAULT_HORIZON = None
 #: small but non-zero.
 _ACTIVE = 1e-6
 _IPOPT = {**IPOPT_DEFAULTS, "tol": 1e-6, "acceptable_tol": 1e-4, "max_iter": 100}
-
-
-def saturate(r, top: float = DEFAULT_SATURATION):
-    """sat(r): r up to 1, then leveling off smoothly at ``top`` (NumPy or CasADi)."""
-    span = top - 1.0
-    if isinstance(r, (ca.MX, ca.SX, ca.DM)):
-        return ca.if_else(r <= 1, r, 1 + span * ca.tanh((r - 1) / span))
-    r = np.asarray(r, dtype=float)
-    return np.where(r <= 1, r, 1 + span * np.tanh((r - 1) / span))
-
-
-@dataclass
-class RobustResult:
-    """The outcome of :meth:`EnvelopeDesign.solve`.
-
-    Attributes
-    ----------
-    theta : ndarray
-        The optimal design (SI), in ``var_names`` order.
-    var_names : list of str
-    return_status : str
-    iterations : int
-    ratios_start, ratios : ndarray, shape (len(checks), S)
-        value/limit of each check and scenario at the start and the optimum.
-    checks : list of str
-    scenarios : list of str
-    objective_start, objective : float
-        The risk measure of the losses at the start and the optimum.
-    multipliers : dict
-        ``scenarios``: per scenario, Ipopt's multiplier of its loss rows
-        summed (how much the risk measure would gain if that scenario's
-        limits were relaxed); ``checks``: the same summed per check;
-        ``bounds``: design variables at a bound with their multipliers;
-        ``shapes``: shape rows with a non-zero multiplier.
-    history : list of dict
-    timings : dict
-    geometry : dict
-        With geometry variables or practical limits: ``start`` and ``end``, the
-        legs' geometry (:meth:`EnvelopeDesign.geometry_report`), and
-        ``practical``, each practical-limit row's value at the end.
-    """
-
-    theta: np.ndarray
-    var_names: list
-    return_status: str
-    iterations: int
-    ratios_start: np.ndarray
-    ratios: np.ndarray
-    checks: list
-    scenarios: list
-    objective_start: float
-    objective: float
-    multipliers: dict = field(default_factory=dict)
-    history: list = field(default_factory=list)
-    timings: dict = field(default_factory=dict)
-    geometry: dict = field(default_factory=dict)
-
-    @property
-    def design(self) -> dict:
-        """{variable name: optimal value}."""
-        return dict(zip(self.var_names, map(float, self.theta)))
-
-    @property
-    def success(self) -> bool:
-        return self.return_status in ("Solve_Succeeded", "Solved_To_Acceptable_Level")
-
-    def scenarios_within(self, which: str = "end") -> int:
-        """How many scenarios meet every limit (all ratios ≤ 1) at the start or the end."""
-        r = self.ratios if which == "end" else self.ratios_start
-        return int(np.sum(np.all(r <= 1.0, axis=0)))
-
-
-def design_checks(limits: dict) -> list:
-    """The checks whose losses the design minimises, in :data:`CHECKS` order.
-
-    Every check with a limit, except the tilt where the tip-over energy check
-    is on: the tilt of a tipped lander saturates its loss whatever the design,
-    and a scenario's loss is its largest over the checks, so the tilt would
-    hide the energy margin's gradient. The tilt limit then only fades the
-    energy samples of a lander that has tipped (:func:`.margins.tip_energy`).
-    """
-    energy = limits.get("tip_energy") is not None
-    return [c for c in CHECKS if limits.get(c) is not None
-            and not (c == "tip_over" and energy)]
 
 
 class EnvelopeDesign(_DesignSpace, _GradientCheck):

@@ -19,7 +19,7 @@ import numpy as np
 from ..envelope.classify import CLASSES
 from ..envelope.runner import write_result
 from ..envelope.study import VARIABLES
-from ..results import atomic_write_text, check_out_dir, jsonable, replacing, to_json, versions
+from ..output_files import atomic_write_text, check_out_dir, jsonable, replacing, to_json, versions
 from .margins import CHECKS
 
 __all__ = ["write_report", "plot_before_after", "plot_curves"]

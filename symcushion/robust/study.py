@@ -31,8 +31,9 @@ from ..envelope.runner import run_envelope
 from ..envelope.study import EnvelopeStudy, study_from_dict as envelope_from_dict
 from ..optimise.study import read_design_table, _Fields
 from ..scene import read_toml
-from .problem import (DEFAULT_ALPHA, DEFAULT_HORIZON, DEFAULT_SATURATION, DEFAULT_TIP_ENERGY,
-                      EnvelopeDesign, RISKS)
+from .problem import EnvelopeDesign
+from .risk import (DEFAULT_ALPHA, DEFAULT_HORIZON, DEFAULT_SATURATION, DEFAULT_TIP_ENERGY,
+                   RISKS)
 from .margins import DEFAULT_SHARPNESS
 from .select import (ANY_DEPTH, DEFAULT_FAIL_SHARE, DEFAULT_WORST_MARGIN, left_out,
                      select_scenarios)
@@ -171,7 +172,7 @@ def _write_geometry(result, out_dir):
     import json
     from pathlib import Path
 
-    from ..results import atomic_write_text, jsonable
+    from ..output_files import atomic_write_text, jsonable
     path = Path(out_dir) / "geometry.json"
     atomic_write_text(path, json.dumps(jsonable(result.geometry), indent=2,
                                        ensure_ascii=False) + "\n")

@@ -16,7 +16,7 @@ from symcushion.characteristics import Linear
 from symcushion.layout import state_layout
 from symcushion.quaternion import quat_to_rot_np
 from symcushion.obstacles import Plane, Sphere
-from symcushion.scene import Body, Scene, symmetric_legs
+from symcushion.scene_data import Body, Scene, symmetric_legs
 from symcushion.simulate import build_model, equilibrium_state, initial_state, stable_dt
 from symcushion.strut import HingedStrut
 

@@ -17,7 +17,7 @@ from symcushion.characteristics import Linear
 from symcushion.layout import state_layout
 from symcushion.quaternion import quat_to_rot, quat_to_rot_np
 from symcushion.obstacles import closest_obstacle
-from symcushion.scene import Scene
+from symcushion.scene_data import Scene
 
 from .cases import Setup
 

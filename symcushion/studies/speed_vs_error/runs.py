@@ -13,9 +13,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from symcushion.codegen import CompiledModel
-from symcushion.layout import default_p, state_layout
+from symcushion.layout import state_layout
+from symcushion.layout_params import default_p
 from symcushion.quaternion import quat_to_rot_np
-from symcushion.scene import Scene
+from symcushion.scene_data import Scene
 from symcushion.simulate import initial_state
 
 from .grid import BEST_OF, CHUNK, REPEAT_BELOW

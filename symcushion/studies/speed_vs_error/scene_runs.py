@@ -12,7 +12,8 @@ import time
 from pathlib import Path
 
 from symcushion.codegen import compiled_model
-from symcushion.scene import Scene, load_scene
+from symcushion.scene import load_scene
+from symcushion.scene_data import Scene
 from symcushion.simulate import build_model
 
 from .grid import BUILD, CHUNK, SCENES, STUDIES, VARIANTS, VM_MAX_STEPS, applies
