@@ -50,8 +50,9 @@ def study(raw):
     data["scene"]["duration"] = SHORT_DURATION
     # the machinery under test is the same for every contact step: the tests
     # use the cheap one (compiles in seconds) rather than the example's
-    # implicit step with the stroke lock at 0.125 ms (docs/envelope.md,
-    # "Method and Δt")
+    # implicit step with the midpoint slip at 1 ms (docs/envelope.md,
+    # "Method and Δt"); the absorbers with memory and their dampers are the
+    # example's
     data["scene"].update(method="robust", dt=2e-3, tangent_plane="start", slip="backward",
                          events="none")
     data["sampling"]["n"] = CASES
@@ -366,6 +367,31 @@ def test_mu_levels_are_accepted(raw):
 def test_missing_study_file_is_reported(tmp_path):
     with pytest.raises(FileNotFoundError, match="nope.toml"):
         ev.load_study(tmp_path / "nope.toml")
+
+
+@needs_cc
+def test_a_built_study_is_found_by_its_index_without_generating_c(study, library, cache,
+                                                                  monkeypatch):
+    """A study whose library was built is found from the index of what it was built from
+    (as a new process reads its file) without building the step's graph; another Δt
+    is not."""
+    from symcushion.envelope import build as eb
+    from symcushion.scene import scene_from_dict
+
+    def scene():                                # a fresh Scene, as a new process reads it
+        return scene_from_dict(study.scene_data, study.source).with_(
+            **{k: getattr(study.scene, k) for k in ("method", "dt", "duration",
+                                                    "tangent_plane", "slip", "events")})
+    first = ev.build_envelope(scene(), cache)
+    assert first.resolve() == Path(library).resolve()
+    assert list((Path(cache) / eb._INDEX).glob("*.json"))
+
+    def no_graph(*args, **kwargs):
+        raise AssertionError("the step's graph was built for a library in the index")
+    monkeypatch.setattr(eb, "build_model", no_graph)
+    assert ev.build_envelope(scene(), cache) == first
+    with pytest.raises(AssertionError, match="graph was built"):
+        ev.build_envelope(scene().with_(dt=study.scene.dt / 2), cache)
 
 
 @needs_cc

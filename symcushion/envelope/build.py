@@ -7,14 +7,18 @@ package), loading it once per process, and the threaded ``map`` over a batch
 """
 from __future__ import annotations
 
+import hashlib
 import json
+import os
+import pickle
 import time
 from pathlib import Path
 
 import casadi as ca
 import numpy as np
 
-from ..codegen import compile_cached
+from ..cbuild import CFLAGS, WARNINGS
+from ..codegen import compile_cached, find_compiler
 from ..scene import scene_from_dict
 from ..scene_data import Scene
 from ..touchdown import build_model
@@ -28,6 +32,41 @@ DEFAULT_CACHE = Path("build") / "envelope"
 _SOURCE = "envelope_case.c"
 _LIBRARY = "libenvelope_case.so"
 _MANIFEST = "envelope.json"
+#: Sub-folder of the cache that maps what a library was built from (the scene,
+#: the steps, symcushion's source, CasADi, flags, compiler) to its folder, so
+#: that a study whose library is built already skips building the step's graph
+#: and generating its C (1–3 s of every start, docs/envelope.md, "Throughput").
+_INDEX = "index"
+_PACKAGE = Path(__file__).resolve().parents[1]
+_PACKAGE_DIGEST: list = []
+
+
+def _package_digest() -> bytes:
+    """Digest of every Python source of symcushion (once per process): the code that
+    turns a scene into C."""
+    if not _PACKAGE_DIGEST:
+        digest = hashlib.sha256()
+        for path in sorted(_PACKAGE.rglob("*.py")):
+            digest.update(str(path.relative_to(_PACKAGE)).encode() + b"\0" + path.read_bytes())
+        _PACKAGE_DIGEST.append(digest.digest())
+    return _PACKAGE_DIGEST[0]
+
+
+def _input_key(scene: Scene, steps: int) -> str | None:
+    """Key of everything the generated C of ``envelope_case`` depends on, or None when
+    the scene cannot be pickled (then the C is generated and fingerprinted as usual).
+
+    A key that differs for the same C only costs a generation; one that matched for
+    different C would load a wrong library, so it holds the whole scene (pickled),
+    the steps, the package's source, CasADi's version, the flags and the compiler."""
+    try:
+        blob = pickle.dumps((scene, int(steps)), protocol=4)
+    except Exception:   # noqa: BLE001 (an unpicklable scene only loses the shortcut)
+        return None
+    digest = hashlib.sha256(blob)
+    digest.update(_package_digest())
+    digest.update(" ".join([ca.__version__, *CFLAGS, *WARNINGS, str(find_compiler())]).encode())
+    return digest.hexdigest()
 
 
 def build_envelope(scene: Scene, cache_dir=None, *, steps: int | None = None,
@@ -36,7 +75,9 @@ def build_envelope(scene: Scene, cache_dir=None, *, steps: int | None = None,
 
     The C source is generated (a second or two), fingerprinted with the flags
     and compiler, and compiled into ``cache_dir/<scene name>-<fingerprint>/``
-    unless that folder already holds the library, so repeated studies, tests
+    unless that folder already holds the library (a scene built before is
+    found without generating its C, by the key of :func:`_input_key` in
+    ``cache_dir/index/``), so repeated studies, tests
     and Dask workers reuse one build and different scenes (or μ) never share
     a path (a process cannot load two libraries from one path). Flags are
     those of ``symcushion.codegen`` (:data:`~symcushion.codegen.CFLAGS`).
@@ -55,12 +96,21 @@ def build_envelope(scene: Scene, cache_dir=None, *, steps: int | None = None,
         ``libenvelope_case.so``, for ``casadi.external("envelope_case", path)``.
     """
     started = time.perf_counter()
-    model = build_model(scene)
     n_steps = scene.steps if steps is None else steps
+    cache = Path(DEFAULT_CACHE if cache_dir is None else cache_dir)
+    key = _input_key(scene, n_steps)
+    entry = None if key is None else cache / _INDEX / f"{_safe(scene.name)}-{key[:32]}.json"
+    if entry is not None and entry.is_file():
+        try:
+            library = cache / json.loads(entry.read_text())["library"]
+        except (ValueError, KeyError, OSError):
+            library = None
+        if library is not None and library.is_file():
+            return library
+    model = build_model(scene)
     note = (f"envelope_case for '{scene.name}' (method {scene.method}, "
             f"{'μ an input' if scene.mu > 0 else 'frictionless'}, {n_steps} steps)")
-    built = compile_cached(envelope_function(model, steps), _SOURCE, _LIBRARY,
-                           Path(DEFAULT_CACHE if cache_dir is None else cache_dir),
+    built = compile_cached(envelope_function(model, steps), _SOURCE, _LIBRARY, cache,
                            _safe(scene.name), note=note if progress else None)
     if built.fresh:
         (built.folder / _MANIFEST).write_text(json.dumps({
@@ -69,6 +119,11 @@ def build_envelope(scene: Scene, cache_dir=None, *, steps: int | None = None,
             "summary": list(SUMMARY), "instructions": model.step.n_instructions(),
             "cflags": built.flags, "compiler": built.compiler, "fingerprint": built.digest,
             "casadi": ca.__version__, "seconds": time.perf_counter() - started}, indent=1))
+    if entry is not None:
+        entry.parent.mkdir(parents=True, exist_ok=True)
+        partial = entry.with_name(f".{entry.name}.{os.getpid()}")
+        partial.write_text(json.dumps({"library": str(built.library.relative_to(cache))}))
+        os.replace(partial, entry)
     return built.library
 
 

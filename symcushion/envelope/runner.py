@@ -246,8 +246,10 @@ def run_envelope(study: EnvelopeStudy, out_dir=None, *, threads: int | None = No
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ValueError(f"`workers` must be a positive integer, got {workers!r}.")
     _check_counts(study)
+    started = time.perf_counter()
     conditions = sample_conditions(study)
     x0, gravity = initial_states(study, conditions)
+    prepare_seconds = time.perf_counter() - started
     scene = study.scene
     started = time.perf_counter()
     libraries = _libraries(study, conditions["mu"], cache_dir, progress)
@@ -292,10 +294,14 @@ def run_envelope(study: EnvelopeStudy, out_dir=None, *, threads: int | None = No
     if finished:
         info["resumed_cases"] = int(sum(len(tasks[k][1]) for k in finished))
     run_seconds = info.pop("compute_seconds", time.perf_counter() - started)
+    started = time.perf_counter()
     columns = classify(summary, x_end, gravity, x0, study.limits, len(scene.legs),
                        reach(scene))
+    classify_seconds = time.perf_counter() - started
     timings = {"backend": backend, **info, "batch": study.batch,
+               "prepare_seconds": round(prepare_seconds, 3),
                "build_seconds": round(build_seconds, 3), "run_seconds": round(run_seconds, 3),
+               "classify_seconds": round(classify_seconds, 3),
                "cases_per_second": round((study.n - info.get("resumed_cases", 0))
                                          / max(run_seconds, 1e-9), 1),
                "steps_per_case": scene.steps, "dt": scene.dt}
@@ -397,10 +403,13 @@ def write_result(result: EnvelopeResult, out_dir, plots: bool = True) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     files = {"cases": out / "cases.csv", "cases_mat": out / "cases.mat",
              "summary": out / "summary.json"}
+    started = time.perf_counter()
     atomic_write_text(files["cases"], result.csv_text())
     if plots:
         files.update(plot_envelope(result, out))
     result.files = files
+    # the MAT file and summary.json carry the time of writing the CSV and the figures
+    result.timings["write_seconds"] = round(time.perf_counter() - started, 3)
     summary = result.summary()
     write_table_mat(files["cases_mat"], result.table(), summary, "summary")
     atomic_write_text(files["summary"], json.dumps(summary, indent=1))
