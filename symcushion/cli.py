@@ -51,9 +51,6 @@ def _scene_and_overrides(args):
         if key != "method" and not value > 0 and not (key == "mu" and value == 0):
             raise ValueError(f"`--{key}` must be {'>= 0' if key == 'mu' else 'positive'}, "
                              f"got {value!r}.")
-    if overrides.get("method", "implicit") != "implicit":
-        # the slip rule belongs to the implicit step: another method has only its own
-        overrides["slip"] = "backward"
     return (scene.with_(**overrides) if overrides else scene), overrides
 
 

@@ -243,7 +243,11 @@ class Scene:
         return max(1, int(round(self.duration / self.dt)))
 
     def with_(self, **changes) -> "Scene":
-        """A copy with some fields replaced (``scene.with_(method='paper')``)."""
+        """A copy with some fields replaced (``scene.with_(method='paper')``). A new
+        ``method`` other than ``'implicit'`` takes the backward slip rule unless ``slip``
+        is given too: the slip rule belongs to the implicit step."""
+        if changes.get("method", "implicit") != "implicit" and "slip" not in changes:
+            changes["slip"] = "backward"
         return replace(self, **changes)
 
 
