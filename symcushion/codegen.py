@@ -53,7 +53,8 @@ from .codegen_hoist import hoisted_step
 from .codegen_load import build_program, load_compiled  # noqa: F401 (re-exports, docs/codegen.md)
 from .codegen_sources import (Signature, generate_source, loop_rollout, manifest_entry,
                               rollout_source, write_header, write_scene_data)
-from .contact import METHODS, contact_step
+from .contact_args import METHODS
+from .contact_dispatch import contact_step
 from .layout import param_layout
 from .results import check_out_dir
 from .scene import Scene, load_scene
