@@ -180,7 +180,8 @@ def _before_closing(text: str, insert: str) -> str:
     ``extern "C"`` block."""
     if not text.endswith(_CLOSE_C):
         raise RuntimeError("unexpected layout of CasADi-generated code: it does not end with "
-                           "the extern \"C\" block; update symcushion.codegen_sources._before_closing.")
+                           "the extern \"C\" block; update "
+                           "symcushion.codegen_sources._before_closing.")
     return text[:-len(_CLOSE_C)] + insert + "\n" + _CLOSE_C
 
 

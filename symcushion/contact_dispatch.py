@@ -17,7 +17,8 @@ import functools
 
 import casadi as ca
 
-from .contact_args import INPUT_NAMES, INPUT_SHAPES, OUTPUT_NAMES, as_sx, check_method, is_literal_zero
+from .contact_args import (INPUT_NAMES, INPUT_SHAPES, OUTPUT_NAMES, as_sx, check_method,
+                           is_literal_zero)
 from .contact_implicit import implicit_step, merge_stick, slip_step, stick_trial
 from .contact_paper import paper_step
 from .contact_robust import robust_step

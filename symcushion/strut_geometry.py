@@ -81,6 +81,7 @@ class HingeGeometry:
     Reads the strut's ``hinge``, ``e0``, ``en``, ``length``, ``gamma0``,
     ``sigma``, ``param_names`` and its cache ``_gradients``.
     """
+
     @property
     def geometry_values(self) -> np.ndarray:
         """The geometry block of ``p`` (shape (GEOMETRY_SIZE,)): hinge (m), e₀, e_n, L₀ (m)."""
@@ -149,7 +150,7 @@ class HingeGeometry:
         """Deflection rates of (S, M_β, M_γ) whose signs select the branches (2.1)."""
         # β′ ≈ (V·e_β)/L, so that x·ẋ is in rad²/s like RATE_WIDTH says. The potential law
         # uses the same rates: its exact β′ = ∇β·V differs by the factor c > 0 of its
-        # gradient (module docstring), which keeps the sign.
+        # gradient (``symcushion.strut``'s docstring), which keeps the sign.
         return dict(S=ca.dot(v, g["e_S"]),
                     M_beta=ca.dot(v, g["e_beta"]) / g["L"],
                     M_gamma=-self.sigma * ca.dot(v, g["e_gamma"]) / g["L"])
