@@ -18,7 +18,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-__all__ = ["curve_param_names", "curve_param_values", "leg_params", "cached_memory_functions",
+__all__ = ["curve_param_names", "curve_param_values", "checked_params", "cached_memory_functions",
            "memory_functions_of", "bound_geometry"]
 
 
@@ -34,7 +34,7 @@ def curve_param_values(elements) -> np.ndarray:
     return np.concatenate(vals) if vals else np.zeros(0)
 
 
-def leg_params(leg, p) -> np.ndarray:
+def checked_params(leg, p) -> np.ndarray:
     """The ``p`` of a leg's NumPy calls: ``leg.param_values`` when ``p`` is None, else
     ``p`` as a flat float array, refused unless it has one entry per ``leg.param_names``."""
     if p is None:

@@ -14,7 +14,7 @@ import casadi as ca
 import numpy as np
 
 from . import absorber
-from .leg_scheme import leg_params
+from .leg_scheme import checked_params
 from .validation import vector
 
 __all__ = ["StrutEvaluation"]
@@ -31,7 +31,7 @@ class StrutEvaluation:
         """The axial set of a foot at ``r`` reached along the loading curve (A2)."""
         el = self._axial()
         delta_S = float(ca.evalf(self.geometry(ca.DM(self._check_r(r)))["delta_S"]))
-        theta = self._theta(el, leg_params(self, p))
+        theta = self._theta(el, checked_params(self, p))
         return float(ca.evalf(absorber.set_on_loading(el.curve, delta_S, theta)))
 
     def _check_r(self, r):
@@ -44,7 +44,7 @@ class StrutEvaluation:
     def force(self, r, v=(0.0, 0.0, 0.0), p=None) -> np.ndarray:
         """P(r) of the strut's law as a NumPy array (N); validates its inputs."""
         out = self.functions()["strut_force"](self._check_r(r), vector("v", v, (3,)),
-                                              leg_params(self, p))
+                                              checked_params(self, p))
         return np.asarray(out, dtype=float).ravel()
 
     def stiffness(self, r, v=(0.0, 0.0, 0.0), p=None, *, paper=False) -> np.ndarray:
@@ -53,7 +53,8 @@ class StrutEvaluation:
             raise ValueError("`paper=True` asks for the hand formula (2.3) of (2.1); this strut "
                              f"has law = {self.law!r}, whose D_p is only by AD; drop `paper`.")
         name = "strut_stiffness_paper" if paper else "strut_stiffness"
-        out = self.functions()[name](self._check_r(r), vector("v", v, (3,)), leg_params(self, p))
+        out = self.functions()[name](self._check_r(r), vector("v", v, (3,)),
+                                     checked_params(self, p))
         return np.asarray(out, dtype=float)
 
     def rest_stiffness_closed_form(self) -> np.ndarray:
