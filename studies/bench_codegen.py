@@ -54,7 +54,8 @@ import numpy as np
 from bench_check import BITWISE, ROUNDOFF_RTOL, check_equal, check_rollout  # studies/
 from symcushion import codegen
 from symcushion.codegen import CFLAGS, build_program, compiled_model, generate, load_compiled
-from symcushion.contact import METHODS, contact_step
+from symcushion.contact_args import METHODS
+from symcushion.contact_dispatch import contact_step
 from symcushion.scene import load_scene
 from symcushion.simulate import build_model, initial_state
 from symcushion import report

@@ -54,8 +54,9 @@ import numpy as np
 from bench_check import (BITWISE, ROUNDOFF_RTOL, BenchmarkCheckError, check_equal,  # studies/
                          check_finite)
 from symcushion import codegen, report
-from symcushion.contact import (INPUT_NAMES, INPUT_SHAPES, METHODS, OUTPUT_NAMES, contact_step, contact_step_call,
+from symcushion.contact import (INPUT_NAMES, METHODS, OUTPUT_NAMES, contact_step, contact_step_call,
                                 stack_inputs)
+from symcushion.contact_args import INPUT_SHAPES
 
 #: Random cases per family.
 CASES = 20000

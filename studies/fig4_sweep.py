@@ -60,7 +60,7 @@ import numpy as np
 
 from symcushion.characteristics import Linear
 from symcushion.layout import state_layout
-from symcushion.contact import METHODS
+from symcushion.contact_args import METHODS
 from symcushion.scene import load_scene, symmetric_legs
 from symcushion.simulate import build_model, initial_state, simulate
 from symcushion.reproduce import measure_claims

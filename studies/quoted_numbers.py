@@ -39,7 +39,7 @@ from typing import Callable
 import numpy as np
 
 from symcushion.cli import main as cli
-from symcushion.contact import contact_step
+from symcushion.contact_dispatch import contact_step
 from symcushion.driver import Trajectory
 from symcushion.envelope import DEFAULT_REST_SPEED
 from symcushion.envelope.statistics import wilson_interval

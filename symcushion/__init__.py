@@ -10,7 +10,9 @@ still reads the compatibility module of the same name.
 from . import envelope, optimise
 from .characteristics import Crushable, Linear, PiecewiseLinear, TwoSided
 from .curve_base import Curve
-from .contact import METHODS, contact_step, solve_contact
+from .contact import solve_contact
+from .contact_args import METHODS
+from .contact_dispatch import contact_step
 from .driver import Trajectory, save, simulate
 from .layout import MODES, output_columns, state_columns
 from .measures import measures_function

@@ -19,7 +19,7 @@ import numpy as np
 from .findings import Finding, obstacle_distances, rotations, world_points
 from .layout import state_layout
 from .obstacles import ImplicitSurface, Terrain, closest_obstacle
-from .strut import SINGULAR_ANGLE
+from .strut_geometry import SINGULAR_ANGLE
 
 __all__ = ["check_start", "check_footpads", "check_terrain", "check_surfaces",
            "check_free_directions", "START_TOLERANCE", "BODY_TOLERANCE", "REACH_FRACTIONS",

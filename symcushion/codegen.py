@@ -24,6 +24,13 @@ and with ``build=True`` compiles them into ``libsymcushion.so`` (loadable with
 flags and cache of ``symcushion.cbuild`` (whose names it re-exports). :func:`compiled_model`
 turns a scene into a model whose ``step`` and ``rollout`` run compiled code.
 
+This module owns which Functions are generated, what their arguments mean
+and the order of the work (:func:`generate`); the text of the files it
+writes is ``symcushion.codegen_sources``'s, the step split at its parameters
+``symcushion.codegen_hoist``'s (:func:`hoisted_step`, re-exported), the
+loading of a build folder ``symcushion.codegen_load``'s (:func:`load_compiled`
+and :func:`build_program`, re-exported: users import them from here).
+
 It derives nothing and re-implements no physics: the Functions are those of
 the other modules, renamed only where two legs would otherwise share a C
 symbol (``leg0_strut_force``, ``leg1_strut_force``, ...).
@@ -32,9 +39,6 @@ from __future__ import annotations
 
 import json
 import os
-import re
-import subprocess
-import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -43,13 +47,18 @@ import casadi as ca
 import numpy as np
 
 from .cbuild import (CFLAGS, CODEGEN_OPTIONS, LIBRARY, MAIN, MANIFEST, PROGRAM,  # noqa: F401
-                     TARGET_CLONES, WARNINGS, CachedBuild, _build, _fingerprint, compile_cached,
+                     WARNINGS, CachedBuild, _build, _fingerprint, compile_cached,
                      find_compiler)
-from .contact import METHODS, contact_step
-from .layout import default_p, param_layout, state_columns
+from .codegen_hoist import hoisted_step
+from .codegen_load import build_program, load_compiled  # noqa: F401 (re-exports, docs/codegen.md)
+from .codegen_sources import (Signature, generate_source, loop_rollout, manifest_entry,
+                              rollout_source, write_header, write_scene_data)
+from .contact_args import METHODS
+from .contact_dispatch import contact_step
+from .layout import param_layout
 from .results import check_out_dir
 from .scene import Scene, load_scene
-from .touchdown import StepModel, build_model, initial_state
+from .touchdown import StepModel, build_model
 
 __all__ = ["CFLAGS", "CODEGEN_OPTIONS", "WARNINGS", "CachedBuild", "CompiledModel", "Generated",
            "build_program", "compile_cached", "compiled_model", "find_compiler", "generate",
@@ -60,16 +69,6 @@ __all__ = ["CFLAGS", "CODEGEN_OPTIONS", "WARNINGS", "CachedBuild", "CompiledMode
 #: steps and struts, and the touchdown step with its rollout (the large one).
 KERNELS = "symcushion_kernels"
 TOUCHDOWN = "symcushion_touchdown"
-HEADER = "symcushion.h"
-#: The C loop over the step that the touchdown source ends with (symcushion/c/rollout.c).
-ROLLOUT = "touchdown_rollout"
-ROLLOUT_SOURCE = "rollout.c"
-#: The step split for the rollout (:func:`hoisted_step`): what depends on p alone,
-#: computed once per rollout, and the rest, called once per step.
-PARAMETRIC = "touchdown_step_parametric"
-CORE = "touchdown_step_core"
-SCENE_DATA = "scene_data.h"
-
 
 
 # ---------------------------------------------------------------------------
@@ -179,100 +178,6 @@ def _check_dense(f: ca.Function):
                                  "symcushion.h documents dense arrays only.")
 
 
-def _shape(sp: ca.Sparsity) -> str:
-    r, c = sp.shape
-    return f"{r}" if c == 1 else f"{r}x{c}"
-
-
-@dataclass(frozen=True)
-class _Signature:
-    """A generated C function as the header and the manifest describe it: its name,
-    inputs and outputs (name, shape text) and what its work line says."""
-
-    name: str
-    inputs: tuple
-    outputs: tuple
-    work: str
-    instructions: int
-
-    @classmethod
-    def of(cls, f: ca.Function) -> "_Signature":
-        kind = "SX" if f.is_a("SXFunction") else "MX"
-        return cls(f.name(),
-                   tuple((n, _shape(f.sparsity_in(i))) for i, n in enumerate(f.name_in())),
-                   tuple((n, _shape(f.sparsity_out(i))) for i, n in enumerate(f.name_out())),
-                   f"{f.n_instructions()} {kind} instructions", f.n_instructions())
-
-
-def hoisted_step(step: ca.Function) -> tuple[ca.Function, ca.Function, ca.Function]:
-    """(step, parametric, core): ``step`` split at what depends on ``p`` alone.
-
-    ``touchdown_step(x, p, dt)`` computes, in every step, values that depend on
-    the parameters only (the inverse of the inertia, the legs' unit axes e₀ and
-    e_n, their rest angle γ₀ by atan2, the rest feet): for Fig. 3 some 200 of
-    its 5 400 SX instructions, 4 of its 12 atan2. ``casadi.extract_parametric``
-    cuts the step's graph there: ``touchdown_step_parametric(p) -> q`` holds
-    those instructions, ``touchdown_step_core(x, p, dt, q) -> (x_next, y)`` the
-    rest, with q in their place. The rollout runs the first once and the
-    second N times (symcushion/c/rollout.c); the returned ``touchdown_step`` is
-    the two called in turn (an MX Function of the same name and arguments as
-    ``step``), so that the C source holds the step's instructions once. All
-    execute the step's own operations on the same operands: the results are
-    the same bits.
-    """
-    x, p, dt = step.sx_in()
-    out = step.call([x, p, dt])
-    sizes = [o.numel() for o in out]
-    expr, symbols, values = ca.extract_parametric(ca.vertcat(*[ca.vec(o) for o in out]), p)
-    q = ca.vertcat(*[ca.vec(s) for s in symbols]) if symbols else ca.SX(0, 1)
-    q_value = ca.vertcat(*[ca.vec(v) for v in values]) if values else ca.SX(0, 1)
-    parametric = ca.Function(PARAMETRIC, [p], [q_value], ["p"], ["q"], {"cse": True})
-    parts = ca.vertsplit(expr, list(np.cumsum([0] + sizes)))
-    core = ca.Function(CORE, [x, p, dt, q], [ca.reshape(part, o.shape)
-                                              for part, o in zip(parts, out)],
-                       ["x", "p", "dt", "q"], step.name_out(), {"cse": True})
-    args = [ca.MX.sym(name, step.sparsity_in(i)) for i, name in enumerate(step.name_in())]
-    whole = ca.Function(step.name(), args, core(*args, parametric(args[1])), step.name_in(),
-                        step.name_out())
-    return whole, parametric, core
-
-
-def _loop_rollout(model: StepModel, steps: int) -> _Signature:
-    """``touchdown_rollout``: ``symcushion/c/rollout.c``, N calls of the step in a C loop."""
-    return _Signature(ROLLOUT, (("x0", f"{model.nx}"), ("p", f"{model.np}"), ("dt", "1")),
-                      (("X", f"{model.nx}x{steps}"), ("Y", f"{model.ny}x{steps}")),
-                      f"{steps} calls of touchdown_step in a C loop", 0)
-
-
-def _doc_block(sig: _Signature, summary: str, meanings: dict) -> str:
-    """The comment documenting one Function in symcushion.h."""
-    lines = [f"{sig.name}({', '.join(n for n, _ in sig.inputs)}) -> "
-             f"({', '.join(n for n, _ in sig.outputs)})"]
-    lines += ["  " + s for s in summary.splitlines()]
-    for label, args in (("in ", sig.inputs), ("out", sig.outputs)):
-        for i, (name, shape) in enumerate(args):
-            text = meanings.get(name, "").splitlines() or [""]
-            lines.append(f"  {label} {i}  {name:<8}[{shape:>6}]  {text[0]}")
-            lines += [" " * 27 + t for t in text[1:]]
-    lines.append(f"  work sizes: {sig.name}_work(); {sig.work}")
-    return "\n".join(" * " + s if s else " *" for s in lines)
-
-
-def _manifest_entry(sig: _Signature) -> dict:
-    """Inputs and outputs of a generated function with their shapes, for the manifest."""
-    return {"in": dict(sig.inputs), "out": dict(sig.outputs), "instructions": sig.instructions}
-
-
-def _c_string(text: str) -> str:
-    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
-
-
-def _c_doubles(values) -> str:
-    vals = [repr(float(v)) for v in np.ravel(values)] or ["0.0"]
-    rows = [", ".join(vals[i:i + 4]) for i in range(0, len(vals), 4)]
-    return "{\n    " + ",\n    ".join(rows) + "\n}"
-
-
 def _as_scene(scene) -> Scene | None:
     if scene is None or isinstance(scene, Scene):
         return scene
@@ -313,7 +218,7 @@ def _functions(scene: Scene | None, steps: int | None):
         model = build_model(scene)
         steps = scene.steps if steps is None else steps
         touchdown = [model.step]
-        rollout = _loop_rollout(model, steps)
+        rollout = loop_rollout(model, steps)
         docs["touchdown_step"] = (
             f"One step of length dt of the touchdown of scene '{scene.name}' ({len(scene.legs)} "
             f"legs,\nmethod {scene.method}, mu = {scene.mu:g}): velocity Verlet for the body, "
@@ -329,177 +234,6 @@ def _functions(scene: Scene | None, steps: int | None):
     for f in kernels + touchdown:
         _check_dense(f)
     return kernels, touchdown, docs, model, rollout
-
-
-def _generate_source(name: str, functions, out_dir: Path, tail: str = "",
-                     declarations: str = "", clones: bool = False) -> tuple[Path, str]:
-    """Write ``name.c``, with ``tail`` appended to CasADi's code; return it and the text
-    of the header CasADi wrote (deleted), with ``declarations`` appended. ``clones``:
-    every function CasADi wrote is compiled in the clones of ``cbuild.TARGET_CLONES``."""
-    cg = ca.CodeGenerator(name + ".c", CODEGEN_OPTIONS)
-    for f in functions:
-        cg.add(f)
-    cg.generate(str(out_dir) + os.sep)
-    source = out_dir / (name + ".c")
-    text = source.read_text()
-    if clones:
-        text = _with_clones(text)
-    if tail:
-        text = _before_closing(text, tail)
-    source.write_text(text)
-    header = out_dir / (name + ".h")
-    text = header.read_text()
-    header.unlink()
-    if declarations:
-        text = _before_closing(text, declarations)
-    return source, text
-
-
-def _rollout_source(model: StepModel, steps: int, nq: int) -> tuple[str, str]:
-    """(C code, declarations) of ``touchdown_rollout``: symcushion/c/rollout.c with the
-    sizes of this step, ``nq`` values of p alone (:func:`hoisted_step`) and N = ``steps``."""
-    sizes = (f"#define ROLLOUT_NX {model.nx}\n#define ROLLOUT_NY {model.ny}\n"
-             f"#define ROLLOUT_NP {model.np}\n#define ROLLOUT_NQ {nq}\n"
-             f"#define ROLLOUT_STEPS {steps}\n")
-    code = (Path(__file__).parent / "c" / ROLLOUT_SOURCE).read_text()
-    args = ("(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, "
-            "int mem)")
-    work = "(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w)"
-    declarations = "\n".join([
-        f"int {ROLLOUT}{args};", f"int {ROLLOUT}_checkout(void);",
-        f"void {ROLLOUT}_release(int mem);", f"void {ROLLOUT}_incref(void);",
-        f"void {ROLLOUT}_decref(void);", f"casadi_int {ROLLOUT}_n_in(void);",
-        f"casadi_int {ROLLOUT}_n_out(void);", f"casadi_real {ROLLOUT}_default_in(casadi_int i);",
-        f"const char* {ROLLOUT}_name_in(casadi_int i);",
-        f"const char* {ROLLOUT}_name_out(casadi_int i);",
-        f"const casadi_int* {ROLLOUT}_sparsity_in(casadi_int i);",
-        f"const casadi_int* {ROLLOUT}_sparsity_out(casadi_int i);",
-        f"int {ROLLOUT}_work{work};", f"int {ROLLOUT}_work_bytes{work};",
-        f"#define {ROLLOUT}_MAX(a, b) ((a) > (b) ? (a) : (b))",
-        f"#define {ROLLOUT}_SZ_ARG (3 + {ROLLOUT}_MAX({CORE}_SZ_ARG, {PARAMETRIC}_SZ_ARG))",
-        f"#define {ROLLOUT}_SZ_RES (2 + {ROLLOUT}_MAX({CORE}_SZ_RES, {PARAMETRIC}_SZ_RES))",
-        f"#define {ROLLOUT}_SZ_IW {ROLLOUT}_MAX({CORE}_SZ_IW, {PARAMETRIC}_SZ_IW)",
-        f"#define {ROLLOUT}_SZ_W (2 * {model.nx} + {nq} + {ROLLOUT}_MAX({CORE}_SZ_W, "
-        f"{PARAMETRIC}_SZ_W))"]) + "\n"
-    return "\n" + sizes + code, declarations
-
-
-_OPEN_C = '#ifdef __cplusplus\nextern "C" {\n#endif\n'
-_CLOSE_C = '#ifdef __cplusplus\n} /* extern "C" */\n#endif\n'
-
-
-#: The definitions of CasADi's functions in its generated C (one per Function).
-_DEFINITION = re.compile(r"^static int (casadi_f\d+)\((.*)\) \{$", re.M)
-
-
-def _with_clones(text: str) -> str:
-    """CasADi's C with ``SYMCUSHION_CLONES`` on each of its function definitions, and
-    the macro (``cbuild.TARGET_CLONES``) defined before the first."""
-    first = _DEFINITION.search(text)
-    if first is None:
-        raise RuntimeError("no function definition found in CasADi's generated C: has "
-                           "its format changed? Generate without clones.")
-    # before the comment CasADi writes on the line above (the Function's signature)
-    start = text.rfind("\n", 0, first.start() - 1) + 1
-    start = start if text.startswith("/*", start) else first.start()
-    text = text[:start] + TARGET_CLONES + "\n" + text[start:]
-    return _DEFINITION.sub(r"SYMCUSHION_CLONES static int \1(\2) {", text)
-
-
-def _before_closing(text: str, insert: str) -> str:
-    """``text``, a generated source or header, with ``insert`` before its closing
-    ``extern "C"`` block."""
-    if not text.endswith(_CLOSE_C):
-        raise RuntimeError("unexpected layout of CasADi-generated code: it does not end with "
-                           "the extern \"C\" block; update symcushion.codegen._before_closing.")
-    return text[:-len(_CLOSE_C)] + insert + "\n" + _CLOSE_C
-
-
-def _strip_linkage(text: str) -> str:
-    """The declarations of a generated header, without its banner and extern "C" wrapper."""
-    if _OPEN_C not in text or _CLOSE_C not in text:
-        raise RuntimeError("unexpected layout of a CasADi-generated header: no extern \"C\" "
-                           "block; update symcushion.codegen._strip_linkage.")
-    body = text.split(_OPEN_C, 1)[1].rsplit(_CLOSE_C, 1)[0]
-    return body.strip() + "\n"
-
-
-def _write_header(out_dir: Path, parts, signatures, docs, scene) -> Path:
-    blocks = "\n *\n".join(_doc_block(sig, *docs[sig.name]) for sig in signatures)
-    about = (f"scene '{scene.name}'" if scene is not None else "no scene (contact steps only)")
-    text = f"""/*
- * symcushion.h -- C API of the symcushion Functions generated by symcushion.codegen
- * (CasADi {ca.__version__}) for {about}. Do not edit: regenerate with
- * `symcushion codegen`. docs/codegen.md explains how to build and call it.
- *
- * Calling convention (CasADi's): every Function F has
- *   int F(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
- * arg[i] points to input i, res[i] to output i (a null pointer: input taken as 0,
- * output not written), both dense, matrices column-major. Get the sizes of the work
- * arrays arg, res, iw, w from F_work(&sz_arg, &sz_res, &sz_iw, &sz_w) (arg and res
- * must hold at least sz_arg, sz_res pointers: the first n_in / n_out are yours, the
- * rest scratch); call F_incref() once, mem = F_checkout(), F(...) as often as needed,
- * F_release(mem), F_decref(). F returns 0 on success. Inputs and outputs must not
- * overlap. casadi_real is double, casadi_int long long int.
- *
- * Functions (argument [shape], meaning and unit):
- *
-{blocks}
- */
-#ifndef SYMCUSHION_H
-#define SYMCUSHION_H
-
-#ifdef __cplusplus
-extern "C" {{
-#endif
-
-""" + "\n".join(_strip_linkage(t) for t in parts) + """
-#ifdef __cplusplus
-} /* extern "C" */
-#endif
-
-#endif /* SYMCUSHION_H */
-"""
-    path = out_dir / HEADER
-    path.write_text(text)
-    return path
-
-
-def _write_scene_data(out_dir: Path, scene: Scene, model: StepModel, steps: int) -> Path:
-    # the standalone program's CSV columns: the names of symcushion.layout, as in
-    # the trajectory.csv of `symcushion simulate`
-    names = state_columns(len(scene.legs))
-    x0 = initial_state(scene)
-    p = default_p(scene)
-    name_rows = ",\n    ".join(_c_string(n) for n in names)
-    text = f"""/*
- * scene_data.h -- scene '{scene.name}' for the standalone program touchdown (main.c).
- * Generated by symcushion.codegen; do not edit. x0 is the scene's initial state
- * (all feet free), p the default leg parameters, dt and STEPS the scene's time grid.
- */
-#ifndef SYMCUSHION_SCENE_DATA_H
-#define SYMCUSHION_SCENE_DATA_H
-
-#define SCENE_NAME {_c_string(scene.name)}
-#define SCENE_NX {model.nx}
-#define SCENE_NP {model.np}
-#define SCENE_STEPS {steps}
-#define SCENE_DT {scene.dt!r}
-
-static const double scene_x0[SCENE_NX] = {_c_doubles(x0)};
-
-/* one element more than needed when SCENE_NP is 0: C has no empty arrays */
-static const double scene_p[SCENE_NP > 0 ? SCENE_NP : 1] = {_c_doubles(p)};
-
-static const char *const scene_state_names[SCENE_NX] = {{
-    {name_rows}
-}};
-
-#endif /* SYMCUSHION_SCENE_DATA_H */
-"""
-    path = out_dir / SCENE_DATA
-    path.write_text(text)
-    return path
 
 
 def generate(out_dir, scene=None, build: bool = False, steps: int | None = None, *,
@@ -553,18 +287,18 @@ def generate(out_dir, scene=None, build: bool = False, steps: int | None = None,
         # the rollout's loop calls the step split at its parameters (hoisted_step)
         hoisted = hoisted_step(model.step)
         groups[TOUCHDOWN] = (list(hoisted),
-                             *_rollout_source(model, steps, hoisted[1].nnz_out(0)))
+                             *rollout_source(model, steps, hoisted[1].nnz_out(0)))
     sources, header_parts = {}, []
     for name, (fns, tail, declarations) in groups.items():
-        src, text = _generate_source(name, fns, out, tail, declarations,
+        src, text = generate_source(name, fns, out, tail, declarations,
                                      clones=name == TOUCHDOWN)
         sources[name] = src
         header_parts.append(text)
-    signatures = [_Signature.of(f) for f in kernels + touchdown] + ([rollout] if rollout else [])
-    header = _write_header(out, header_parts, signatures, docs, scene)
+    signatures = [Signature.of(f) for f in kernels + touchdown] + ([rollout] if rollout else [])
+    header = write_header(out, header_parts, signatures, docs, scene)
     extra = [header]
     if scene is not None:
-        extra.append(_write_scene_data(out, scene, model, steps))
+        extra.append(write_scene_data(out, scene, model, steps))
         main = out / MAIN
         main.write_bytes((Path(__file__).parent / "c" / MAIN).read_bytes())
         extra.append(main)
@@ -593,7 +327,7 @@ def generate(out_dir, scene=None, build: bool = False, steps: int | None = None,
         "ny": None if model is None else model.ny,
         "np": None if model is None else model.np,
         "param_names": [] if model is None else list(model.param_names),
-        "functions": {sig.name: _manifest_entry(sig) for sig in signatures},
+        "functions": {sig.name: manifest_entry(sig) for sig in signatures},
         "sources": {k: v.name for k, v in sources.items()},
         "cflags": flags,
         "fingerprint": fingerprint,
@@ -611,82 +345,8 @@ def generate(out_dir, scene=None, build: bool = False, steps: int | None = None,
 
 
 # ---------------------------------------------------------------------------
-# loading compiled code
+# compiled models (the loading itself: symcushion.codegen_load)
 # ---------------------------------------------------------------------------
-def load_compiled(path) -> dict:
-    """The compiled Functions of a build folder, by name, via ``casadi.external``.
-
-    Parameters
-    ----------
-    path : str or Path
-        The folder given to :func:`generate` with ``build=True``, or its
-        ``libsymcushion.so``.
-
-    Returns
-    -------
-    dict of str to casadi.Function
-        ``{'contact_step_paper': ..., 'touchdown_step': ..., ...}``, the
-        functions listed in the folder's ``symcushion.json``, with the same
-        named inputs and outputs as the SX Functions they were generated from.
-        They evaluate numerically only (no derivatives are generated).
-    """
-    path = Path(path)
-    folder = path.parent if path.suffix == ".so" else path
-    library = path if path.suffix == ".so" else folder / LIBRARY
-    manifest = folder / MANIFEST
-    if not library.is_file() or not manifest.is_file():
-        raise FileNotFoundError(f"no compiled symcushion library in {str(folder)!r}: run "
-                                f"`symcushion codegen --out {folder} --build` first.")
-    info = json.loads(manifest.read_text())
-    if (info.get("build") or {}).get("fingerprint") != info["fingerprint"]:
-        raise FileNotFoundError(f"{library} was built from other sources than those now in "
-                                f"{str(folder)!r}: rebuild with `symcushion codegen --out "
-                                f"{folder} --build` (add --scene as before).")
-    return {name: ca.external(name, str(library.resolve())) for name in info["functions"]}
-
-
-def build_program(out_dir, source, name: str | None = None) -> Path:
-    """Compile your own C program against a build folder's generated code.
-
-    ``source`` includes ``symcushion.h`` and calls the generated Functions; it
-    is compiled with :data:`CFLAGS` and :data:`WARNINGS`, ``-I out_dir``, and
-    linked with the folder's objects (the build of :func:`generate` with
-    ``build=True``) into ``out_dir/name``.
-
-    Parameters
-    ----------
-    out_dir : str or Path
-    source : str or Path
-        A C file.
-    name : str, optional
-        The program's file name; default the source's stem.
-
-    Returns
-    -------
-    Path
-        The program.
-    """
-    out = Path(out_dir)
-    source = Path(source)
-    manifest = out / MANIFEST
-    info = json.loads(manifest.read_text()) if manifest.is_file() else {}
-    objects = [out / (stem + ".o") for stem in info.get("sources", {})]
-    if not objects or not all(o.is_file() for o in objects):
-        raise FileNotFoundError(f"no compiled symcushion objects in {str(out)!r}: run "
-                                f"`symcushion codegen --out {out} --build` first.")
-    if not source.is_file():
-        raise FileNotFoundError(f"C source {str(source)!r} does not exist.")
-    program = out / (name or source.stem)
-    argv = [find_compiler(), *CFLAGS, *WARNINGS, "-I", str(out), str(source),
-            *map(str, objects), "-o", str(program), "-lm"]
-    run = subprocess.run(argv, capture_output=True, text=True)
-    if run.returncode != 0:
-        raise RuntimeError(f"compiling {source} failed ({' '.join(argv)}):\n{run.stderr}")
-    if run.stderr.strip():
-        print(f"gcc printed, compiling {source.name}:\n{run.stderr}", file=sys.stderr)
-    return program
-
-
 @dataclass
 class CompiledModel(StepModel):
     """A :class:`~symcushion.simulate.StepModel` whose step and rollout are compiled.

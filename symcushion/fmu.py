@@ -36,7 +36,7 @@ import casadi as ca
 import numpy as np
 
 from .cbuild import CFLAGS, CODEGEN_OPTIONS, WARNINGS, _run_parallel, find_compiler
-from .codegen import _c_string
+from .codegen_sources import c_string
 from .fmu_variables import ENERGY_FIELDS, INPUTS, KINDS, fmu_variables, model_description
 from .layout import output_layout, state_layout
 from .quaternion import quat_to_rot_np
@@ -90,8 +90,8 @@ def _model_header(model: StepModel, model_identifier: str, guid: str) -> str:
     variables = fmu_variables(model)
     real = [v for v in variables if v.type == "Real"]
     integer = [v for v in variables if v.type == "Integer"]
-    defines = dict(FMU_MODEL_IDENTIFIER=_c_string(model_identifier), FMU_GUID=_c_string(guid),
-                   FMU_SCENE=_c_string(scene.name), FMU_NX=model.nx, FMU_NY=model.ny,
+    defines = dict(FMU_MODEL_IDENTIFIER=c_string(model_identifier), FMU_GUID=c_string(guid),
+                   FMU_SCENE=c_string(scene.name), FMU_NX=model.nx, FMU_NY=model.ny,
                    FMU_NP=model.np, FMU_NU=3 * len(INPUTS), FMU_DT=_c_double(scene.dt),
                    FMU_STEP_RTOL=repr(STEP_MULTIPLE_RTOL), FMU_N_REAL=len(real),
                    FMU_N_INTEGER=len(integer), FMU_NE=len(ENERGY_FIELDS) * n_legs,
@@ -120,7 +120,7 @@ def _model_header(model: StepModel, model_identifier: str, guid: str) -> str:
             + _c_array("double", "fmu_p0", model.default_p, _c_double)
             + _c_array("unsigned char", "fmu_real_kind", [KINDS[v.kind] for v in real])
             + _c_array("int", "fmu_real_index", [v.index for v in real])
-            + _c_array("char *const", "fmu_real_name", [v.name for v in real], _c_string)
+            + _c_array("char *const", "fmu_real_name", [v.name for v in real], c_string)
             + _c_array("int", "fmu_integer_index", [v.index for v in integer])
             + _c_array("int", "fmu_energy_index", [yl.slice(f, j).start for j in range(n_legs)
                                                    for f in ENERGY_FIELDS])

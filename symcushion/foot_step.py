@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import casadi as ca
 
 from .branch_switch import branch_flip, locates_switch, stored_branch, switch_in_step
-from .contact import contact_step_call
+from .contact_dispatch import contact_step_call
 from .contact_guards import at_least, at_most
 from .contact_midpoint import midpoint_slip_call
 from .quaternion import quat_exp, quat_mul, quat_to_rot

@@ -9,15 +9,16 @@ step calls it only through ``functions()`` (``strut_force``, ``strut_stiffness``
 deflection outputs and its geometry block in ``p``.
 
 This module owns the pieces both schemes build the same way: the names and
-values of a leg's tunable curve parameters and the memory law's named
-Functions, and a geometry Function bound to a leg's slice of ``p``. It knows no scheme's geometry and nothing of contact or the body.
+values of a leg's tunable curve parameters, the check of a ``p`` given to
+a leg's NumPy calls, the memory law's named Functions, and a geometry
+Function bound to a leg's slice of ``p``. It knows no scheme's geometry and nothing of contact or the body.
 """
 from __future__ import annotations
 
 import casadi as ca
 import numpy as np
 
-__all__ = ["curve_param_names", "curve_param_values", "cached_memory_functions",
+__all__ = ["curve_param_names", "curve_param_values", "checked_params", "cached_memory_functions",
            "memory_functions_of", "bound_geometry"]
 
 
@@ -31,6 +32,18 @@ def curve_param_values(elements) -> np.ndarray:
     """The default values of a leg's tunable curve parameters (``curve_param_names``)."""
     vals = [el.curve.param_values for el in elements if el.curve.tunable]
     return np.concatenate(vals) if vals else np.zeros(0)
+
+
+def checked_params(leg, p) -> np.ndarray:
+    """The ``p`` of a leg's NumPy calls: ``leg.param_values`` when ``p`` is None, else
+    ``p`` as a flat float array, refused unless it has one entry per ``leg.param_names``."""
+    if p is None:
+        return leg.param_values
+    p = np.asarray(p, dtype=float).ravel()
+    if p.size != len(leg.param_names):
+        raise ValueError(f"`p` must have {len(leg.param_names)} entries "
+                         f"{leg.param_names}, got {p.size}.")
+    return p
 
 
 def cached_memory_functions(leg, geometry: str) -> dict[str, ca.Function]:

@@ -18,7 +18,7 @@ import numpy as np
 
 from .output_files import atomic_write_text, check_out_dir, replacing
 from .scene import load_scene
-from .contact import METHODS
+from .contact_args import METHODS
 from .driver import Trajectory, simulate
 from .touchdown import build_model
 

@@ -20,7 +20,7 @@ from pathlib import Path
 from .absorber import DEFAULT_DAMPING_RATIO, default_damping_time, elastic_stiffness
 from .characteristics import Crushable, GasSpring, Linear, PiecewiseLinear, TwoSided
 from .curve_base import KINK_WIDTH, RATE_WIDTH, Curve
-from .contact import METHODS  # re-exported: scenes name their contact step
+from .contact_args import METHODS  # re-exported: scenes name their contact step
 from .obstacles import ImplicitSurface, Obstacle, Plane, Sphere, Terrain
 from .strut import DEFAULT_LAW, LAWS, HingedStrut
 from .tripod import ELEMENTS as TRIPOD_ELEMENTS

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .contact import METHODS
+from .contact_args import METHODS
 from .curve_base import Curve
 from .obstacles import Obstacle
 from .strut import HingedStrut

@@ -5,14 +5,16 @@
 into checked NumPy calls — :meth:`~TripodEvaluation.force`,
 :meth:`~TripodEvaluation.stiffness`, :meth:`~TripodEvaluation.strokes`,
 :meth:`~TripodEvaluation.forces` — and the closed-form rest stiffness the
-tests hold them against. It owns the validation of a foot position and a
-parameter vector; it must not build an expression or a Function
-(``symcushion.tripod`` does) and is not used on its own.
+tests hold them against. It owns the validation of a foot position (a
+parameter vector's is ``symcushion.leg_scheme.checked_params``); it must not
+build an expression or a Function (``symcushion.tripod`` does) and is not
+used on its own.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from .leg_scheme import checked_params
 from .tripod_geometry import ZERO_LENGTH, numeric_geometry
 from .validation import vector
 
@@ -36,17 +38,9 @@ class TripodEvaluation:
                              "from it.")
         return r
 
-    def _p(self, p):
-        if p is None:
-            return self.param_values
-        p = np.asarray(p, dtype=float).ravel()
-        if p.size != len(self.param_names):
-            raise ValueError(f"`p` must have {len(self.param_names)} entries "
-                             f"{self.param_names}, got {p.size}.")
-        return p
-
     def _call(self, name, r, v, p):
-        out = self.functions()[name](self._check_r(r), vector("v", v, (3,)), self._p(p))
+        out = self.functions()[name](self._check_r(r), vector("v", v, (3,)),
+                                     checked_params(self, p))
         return np.asarray(out, dtype=float)
 
     def force(self, r, v=(0.0, 0.0, 0.0), p=None) -> np.ndarray:
@@ -66,7 +60,7 @@ class TripodEvaluation:
     def forces(self, r, v=(0.0, 0.0, 0.0), p=None) -> np.ndarray:
         """f = (S, T₂, T₃) at foot position ``r``, shape (3,) (N)."""
         fn = self.functions()["tripod_element_forces"]
-        out = fn.call(dict(r=self._check_r(r), v=vector("v", v, (3,)), p=self._p(p)))
+        out = fn.call(dict(r=self._check_r(r), v=vector("v", v, (3,)), p=checked_params(self, p)))
         return np.concatenate([np.asarray(out["S"]).ravel(), np.asarray(out["T"]).ravel()])
 
     def rest_stiffness_closed_form(self) -> np.ndarray:

@@ -19,7 +19,7 @@ import pytest
 
 from symcushion import codegen
 from symcushion.cli import main as cli_main
-from symcushion.contact import contact_step
+from symcushion.contact_dispatch import contact_step
 from symcushion.scene import load_scene
 from symcushion.simulate import build_model, initial_state, simulate
 

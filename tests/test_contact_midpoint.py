@@ -16,7 +16,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from symcushion.contact import contact_step
+from symcushion.contact_dispatch import contact_step
 from symcushion.contact_midpoint import THETA_SERIES, _build, fitted_theta
 from symcushion.optimise import study_from_dict
 from symcushion.scene import SceneError, load_scene, read_toml, scene_from_dict

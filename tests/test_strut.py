@@ -26,7 +26,8 @@ import pytest
 
 from symcushion import Crushable, HingedStrut, Linear, PiecewiseLinear
 from symcushion.curve_base import RATE_WIDTH
-from symcushion.strut import RIGID_AXIAL_RATIO, SINGULAR_ANGLE
+from symcushion.strut import RIGID_AXIAL_RATIO
+from symcushion.strut_geometry import SINGULAR_ANGLE
 
 EPS = np.finfo(float).eps
 

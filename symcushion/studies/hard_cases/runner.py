@@ -10,7 +10,7 @@ import time
 
 import numpy as np
 
-from symcushion.contact import METHODS
+from symcushion.contact_args import METHODS
 from symcushion.layout import state_layout
 from symcushion.simulate import build_model, initial_state, simulate, trajectory_from
 
