@@ -35,9 +35,10 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from absorbers import rollout  # noqa: E402  (studies/absorbers.py, beside this file)
 from symcushion.layout import output_layout, state_layout  # noqa: E402
+from symcushion.output_files import replacing  # noqa: E402
 from symcushion.scene import load_scene  # noqa: E402
-from symcushion.touchdown import build_model, initial_state  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 FIGURE = HERE.parent / "figures" / "force_stroke_loop.png"
@@ -53,12 +54,7 @@ DURATION = 1.0
 
 def leg_loop(scene, dt):
     """Per leg and step: compression −δ_S (m), axial force S (N), set (m), contact flag."""
-    scene = scene.with_(dt=dt)
-    model = build_model(scene)
-    X, Y = model.rollout(scene.steps)(initial_state(scene), model.default_p, dt)
-    X, Y = np.asarray(X), np.asarray(Y)
-    if not (np.all(np.isfinite(X)) and np.all(np.isfinite(Y))):
-        raise RuntimeError(f"{scene.name} at dt = {dt:g} s gave a non-finite state.")
+    X, Y = rollout(scene, dt)
     n = len(scene.legs)
     yl, xl = output_layout(n), state_layout(n)
     axial = -np.einsum("jkt,jkt->jt", yl.legs(Y, "force"), yl.legs(Y, "axis"))
@@ -120,9 +116,8 @@ def main():
     axes[0].set_ylabel("axial force S [N], compression positive")
     fig.suptitle("The axial absorber of the leg that strokes most, over its touchdowns", fontsize=11)
     fig.tight_layout()
-    tmp = FIGURE.with_suffix(".tmp.png")
-    fig.savefig(tmp, dpi=130)
-    tmp.replace(FIGURE)
+    with replacing(FIGURE) as tmp:          # no half-written figure on an interrupt
+        fig.savefig(tmp, dpi=130)
     print(f"wrote {FIGURE}")
 
 

@@ -22,6 +22,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 from symcushion.envelope import run_envelope  # noqa: E402
+from symcushion.output_files import replacing  # noqa: E402
 from symcushion.robust import CHECKS, EnvelopeDesign  # noqa: E402
 from symcushion.robust.study import load_robust_study  # noqa: E402
 
@@ -75,9 +76,8 @@ def draw(ratio, cls):
     ax.legend(fontsize=8)
     fig.tight_layout()
     FIGURE.parent.mkdir(exist_ok=True)
-    tmp = FIGURE.with_suffix(".tmp.png")
-    fig.savefig(tmp, dpi=110)
-    tmp.replace(FIGURE)
+    with replacing(FIGURE) as tmp:          # no half-written figure on an interrupt
+        fig.savefig(tmp, dpi=110)
     print(f"wrote {FIGURE}")
 
 
