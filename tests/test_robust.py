@@ -63,6 +63,24 @@ def test_saturate_is_the_identity_up_to_the_limit_and_levels_off():
     assert np.all(np.diff(saturate(np.linspace(0, 20, 200), 3.0)) > 0)
 
 
+
+def test_an_element_off_its_bounds_keeps_its_set_exactly():
+    """On the memory law the set moves only on a bound (A2), and off the bounds it is
+    kept bit for bit: the step's crush-onset kick asks whether it moved, and a
+    round-off move made the design's rollouts differ from their AD derivative."""
+    from symcushion import absorber
+    from symcushion.characteristics import PiecewiseLinear as Piecewise
+    curve = Piecewise([-0.3, -0.02, 0.0], [-1000.0, -1000.0, 0.0], damping=10.0,
+                      unloading=Piecewise([-0.3, -0.01, 0.0], [-300.0, -300.0, 0.0]))
+    s = -0.0041853271
+    for x in np.linspace(-0.0199, -0.011, 37):        # inside the band (A1), (A5)
+        for rate in (None, (750.0, 10.0)):
+            got = float(ca.evalf(absorber.next_set(curve, x, s, rate=rate)))
+            assert got == s, (x, rate, got)
+    crushed = float(ca.evalf(absorber.next_set(curve, -0.05, s)))
+    assert crushed == pytest.approx(-0.05 + 1000.0 / 50000.0, rel=1e-12)
+
+
 def test_select_scenarios_takes_failures_near_the_boundary_by_class():
     cls = np.array(["stable"] * 6 + ["tip_over"] * 4 + ["stroke"] * 2 + ["no_touchdown"])
     margins = np.array([0.5, 0.01, 0.2, 0.03, 0.9, 0.02,      # stable
