@@ -38,9 +38,9 @@ from pathlib import Path
 
 import numpy as np
 
-from symcushion.layout import output_layout, state_layout
-from symcushion.scene import load_scene, read_toml, scene_from_dict
-from symcushion.touchdown import build_model, initial_state
+from symcushion.scheme.layout import output_layout, state_layout
+from symcushion.model.scene import load_scene, read_toml, scene_from_dict
+from symcushion.scheme.touchdown import build_model, initial_state
 
 HERE = Path(__file__).resolve().parent
 DAMPED = HERE / "lander_damped.toml"

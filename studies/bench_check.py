@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from symcushion.simulate import build_model
+from symcushion.scheme.touchdown import build_model
 
 #: Relative tolerance of "equal to round-off": a few hundred ulps of the
 #: largest entry, far below any modelling difference (the contact steps'

@@ -1,7 +1,7 @@
 """What does generated C buy over the CasADi VM and over NumPy?
 
 Question: symcushion's Functions run in CasADi's virtual machine (the SX
-Function) or, generated to C by ``symcushion.codegen``, as compiled code.
+Function) or, generated to C by ``symcushion.compiled.codegen``, as compiled code.
 How much faster is the compiled code, for one contact step and for a whole
 touchdown, and is a 4-leg touchdown step fast enough for real time?
 
@@ -11,7 +11,7 @@ distribution (``tests/oracle_contact.random_cases``, all kinds), evaluated by
 the NumPy oracle (``tests/oracle_contact.py``, one case per call), by the
 SX Function and by the compiled library via ``casadi.external``, each from
 Python one case per call and in one ``map(BATCH)`` call (serial, inputs
-converted to DM beforehand), and in C by ``symcushion/c/bench_contact.c``
+converted to DM beforehand), and in C by ``symcushion/compiled/c/bench_contact.c``
 (a loop over the cases calling the generated function, clock_gettime).
 Touchdown: the Fig. 3 drop (``studies/fig3.toml``: 4 legs, method 'paper',
 μ = 0, Δt = 1 ms) run for DROP_SECONDS: a Python loop over the VM's
@@ -52,13 +52,14 @@ import casadi as ca
 import numpy as np
 
 from bench_check import BITWISE, ROUNDOFF_RTOL, check_equal, check_rollout  # studies/
-from symcushion import codegen
-from symcushion.codegen import CFLAGS, build_program, compiled_model, generate, load_compiled
-from symcushion.contact_args import METHODS
-from symcushion.contact_dispatch import contact_step
-from symcushion.scene import load_scene
-from symcushion.simulate import build_model, initial_state
-from symcushion import report
+from symcushion.compiled import codegen
+from symcushion.compiled.codegen import (CFLAGS, build_program, compiled_model, generate,
+    load_compiled)
+from symcushion.contact.args import METHODS
+from symcushion.contact.dispatch import contact_step
+from symcushion.model.scene import load_scene
+from symcushion.scheme.touchdown import build_model, initial_state
+from symcushion.run import report
 
 ROOT = Path(__file__).resolve().parent.parent
 DOC = ROOT / "docs" / "codegen.md"
@@ -487,7 +488,7 @@ def main(argv=None) -> None:
         + " ".join(CFLAGS) + "`.\n\n"
         f"**Contact steps**, evaluations per second, {BATCH} random cases of the oracle's "
         "distribution. VM and external: CPU time from Python, one case per call or one call "
-        "of `f.map(" + str(BATCH) + ")` on DM inputs; C loop: `symcushion/c/bench_contact.c` "
+        "of `f.map(" + str(BATCH) + ")` on DM inputs; C loop: `symcushion/compiled/c/bench_contact.c` "
         "calling the generated function once per case (clock_gettime, best of "
         f"{C_REPEAT} passes); ratios are of time per evaluation.\n\n" + t1 + "\n\n"
         f"**Fig. 3 drop**, {DROP_SECONDS:g} s of simulated time ({drop['scene'].steps} steps of "

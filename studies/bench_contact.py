@@ -26,7 +26,7 @@ Method:
   call from Python and for one call of ``f.map(BATCH)`` (serial), best of
   BEST_OF repeats.
 - Compiled cost: the steps generated into one C library at -O3 and timed
-  in one C harness (``symcushion/c/bench_contact.c``) on the same cases:
+  in one C harness (``symcushion/compiled/c/bench_contact.c``) on the same cases:
   ns per evaluation and the implicit/robust ratio; also the steps as the
   simulator calls them (``contact_step_call``: the implicit step skips its
   slip part for a sticking foot), in a second library timed by the same
@@ -53,10 +53,11 @@ import numpy as np
 
 from bench_check import (BITWISE, ROUNDOFF_RTOL, BenchmarkCheckError, check_equal,  # studies/
                          check_finite)
-from symcushion import codegen, report
-from symcushion.contact import (INPUT_NAMES, METHODS, OUTPUT_NAMES, contact_step, contact_step_call,
-                                stack_inputs)
-from symcushion.contact_args import INPUT_SHAPES
+from symcushion.compiled import codegen
+from symcushion.run import report
+from symcushion.contact import (INPUT_NAMES, METHODS, OUTPUT_NAMES, contact_step,
+    contact_step_call, stack_inputs)
+from symcushion.contact.args import INPUT_SHAPES
 
 #: Random cases per family.
 CASES = 20000
@@ -71,7 +72,7 @@ NATIVE_CASES = 2000
 C_REPEAT = 20
 
 DOC = Path(__file__).resolve().parent.parent / "docs" / "contact.md"
-#: The C timing loop (symcushion/c/bench_contact.c).
+#: The C timing loop (symcushion/compiled/c/bench_contact.c).
 HARNESS = Path(codegen.__file__).parent / "c" / "bench_contact.c"
 SECTION = "Benchmark"
 #: Name of this benchmark in the messages of its checks.
@@ -258,8 +259,8 @@ def called_program(out: Path) -> Path:
 def native_ratio(cases, called=False):
     """ns per evaluation of the three steps in one C harness (-O3), same cases.
 
-    The three steps are generated into one library by ``symcushion.codegen``
-    (``CFLAGS``: -O3) and timed by ``symcushion/c/bench_contact.c`` (a loop
+    The three steps are generated into one library by ``symcushion.compiled.codegen``
+    (``CFLAGS``: -O3) and timed by ``symcushion/compiled/c/bench_contact.c`` (a loop
     over the cases calling each generated function, clock_gettime), in one
     process run per repeat, best of BEST_OF runs. With ``called``, the steps
     as the simulator calls them (:func:`called_program`). Returns the best ns
@@ -297,7 +298,7 @@ def native_ratio(cases, called=False):
 def check_native(outputs: bytes, cases, called: bool) -> None:
     """Raise unless the harness's outputs equal the steps on the CasADi VM.
 
-    ``outputs`` is what ``symcushion/c/bench_contact.c`` wrote: for each step of
+    ``outputs`` is what ``symcushion/compiled/c/bench_contact.c`` wrote: for each step of
     METHODS and each case, the outputs of OUTPUT_NAMES (HARNESS_COLUMNS). Each
     must be finite and equal, to round-off (ROUNDOFF_RTOL), to
     ``contact_step(method)`` mapped over the same cases on the VM.

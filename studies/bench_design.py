@@ -2,7 +2,7 @@
 
 Solves ``studies/optimise_lander.toml`` (4 legs, 4 touchdowns, 11 design
 variables, implicit step) twice: with the rollouts and their Jacobian in a
-compiled library (``symcushion.compiled_nlp``, built once and cached), and on
+compiled library (``symcushion.design.compiled_nlp``, built once and cached), and on
 the VM as before. Prints for each: total wall time, CPU time of the process,
 the build (C generation, gcc cold and cached, loading), the time Ipopt
 spends in the constraint Jacobian and in the rest, iterations, and the
@@ -33,8 +33,8 @@ import casadi as ca
 import numpy as np
 
 from bench_check import ROUNDOFF_RTOL, check_equal  # studies/bench_check.py
-from symcushion.compiled_nlp import COMPILE_FLAGS, DEFAULT_CACHE, SCENARIOS, compile_design
-from symcushion.optimise import load_study
+from symcushion.design.compiled_nlp import COMPILE_FLAGS, DEFAULT_CACHE, SCENARIOS, compile_design
+from symcushion.design.optimise import load_study
 
 ROOT = Path(__file__).resolve().parents[1]
 STUDY = ROOT / "studies" / "optimise_lander.toml"

@@ -31,9 +31,9 @@ import numpy as np
 
 from bench_check import BITWISE, ROUNDOFF_RTOL, check_equal, check_finite  # studies/
 from symcushion.envelope import run_envelope
-from symcushion.robust import EnvelopeDesign
-from symcushion.robust.select import select_scenarios
-from symcushion.robust.study import load_robust_study
+from symcushion.design.robust import EnvelopeDesign
+from symcushion.design.robust.select import select_scenarios
+from symcushion.design.robust.study import load_robust_study
 
 ROOT = Path(__file__).resolve().parents[1]
 STUDY = ROOT / "studies" / "design_for_envelope.toml"

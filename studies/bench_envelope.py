@@ -34,7 +34,7 @@ reference for the held stroke of docs/event-order.md.
 With ``--refine`` the midpoint rule with and without the lock at Δt = 0.5
 down to 0.0625 ms, with the CPU per case of each run.
 
-Each writes its section of docs/envelope.md (``symcushion.report``). Before
+Each writes its section of docs/envelope.md (``symcushion.run.report``). Before
 the throughput runs are timed, the compiled ``envelope_case`` they run is
 checked on the study's first CHECK_CASES cases, with their own parameters
 (``case_params``: the scene's curves, mass and inertia, the case's μ and
@@ -59,13 +59,13 @@ import casadi as ca
 import numpy as np
 
 from bench_check import BITWISE, check_equal  # studies/bench_check.py
-from symcushion import report
+from symcushion.run import report
 from symcushion.envelope import (CLASSES, CONFIDENCE, build_envelope, case_params, classify,
-                                 envelope_function, evaluate, initial_states, load_study, reach,
-                                 run_batch, run_envelope, sample_conditions, wilson_interval)
+    envelope_function, evaluate, initial_states, load_study, reach, run_batch, run_envelope,
+    sample_conditions, wilson_interval)
 from symcushion.envelope.study import study_from_dict
-from symcushion.scene import read_toml
-from symcushion.simulate import build_model
+from symcushion.model.scene import read_toml
+from symcushion.scheme.touchdown import build_model
 
 ROOT = Path(__file__).resolve().parent.parent
 STUDY = ROOT / "studies" / "envelope_lander.toml"

@@ -7,7 +7,7 @@ constants, which CasADi folds. How much slower is the compiled step with
 the geometry as inputs, and are its numbers the constant build's?
 
 Method: for each scene, both builds' ``touchdown_rollout`` of STEPS steps
-are generated to C and compiled with ``symcushion.cbuild.CFLAGS`` (-O3),
+are generated to C and compiled with ``symcushion.compiled.cbuild.CFLAGS`` (-O3),
 then called on the scene's initial state and default p, interleaved, best
 of BEST_OF rounds of process CPU time; µs per step = time / STEPS. Printed:
 SX instructions of the step, µs per step, the ratio input/constant, and the
@@ -24,9 +24,9 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from symcushion.cbuild import compile_cached
-from symcushion.scene import load_scene
-from symcushion.touchdown import build_model, initial_state
+from symcushion.compiled.cbuild import compile_cached
+from symcushion.model.scene import load_scene
+from symcushion.scheme.touchdown import build_model, initial_state
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = ("studies/fig4.toml", "studies/lander_slope.toml")

@@ -4,7 +4,7 @@ Runs ``symcushion simulate studies/fig3.toml --duration 1000 --no-plots`` in a
 subprocess (Δt = 1 ms: 10⁶ steps) and prints the subprocess's peak resident
 memory (``resource.getrusage(RUSAGE_CHILDREN).ru_maxrss``), its wall time and
 the size of what it wrote. The driver rolls out blocks of
-``symcushion.driver.BLOCK_STEPS`` steps and appends each block to the files,
+``symcushion.run.driver.BLOCK_STEPS`` steps and appends each block to the files,
 so the peak should not grow with the duration; the aim is under 300 MB.
 
 Before the long run, the same command runs CHECK_SECONDS of the scene, and

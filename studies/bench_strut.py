@@ -34,7 +34,7 @@ import numpy as np
 
 from bench_check import ROUNDOFF_RTOL, check_equal  # studies/bench_check.py
 from symcushion import Crushable, HingedStrut, Linear
-from symcushion import report
+from symcushion.run import report
 
 #: Poses per batched call.
 BATCH = 1000

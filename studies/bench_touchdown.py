@@ -13,7 +13,7 @@ MuJoCo on the same lander with linear legs (:func:`mujoco_scene`: the MuJoCo
 peer cannot express their crushable absorbers).
 
 Method.
-symcushion: ``symcushion.codegen.compiled_model`` builds the scene's C code;
+symcushion: ``symcushion.compiled.codegen.compiled_model`` builds the scene's C code;
 its compiled ``touchdown_rollout`` (N steps in one C call, no Python per
 step) is called on the scene's initial state with the scene's own
 parameters (``model.default_p``: gravity, mass, inertia, μ) through
@@ -55,13 +55,13 @@ import numpy as np
 from bench_check import (BITWISE, buffered, check_equal, check_finite,  # studies/
                          check_rollout)
 from bench_contact import NATIVE_CASES, native_ratio, spatial_cases  # studies/bench_contact.py
-from symcushion import codegen
-from symcushion.codegen import CFLAGS, compiled_model
+from symcushion.compiled import codegen
+from symcushion.compiled.codegen import CFLAGS, compiled_model
 from symcushion.peers.mujoco_model import build_mjcf, mujoco_available, mujoco_simulate
-from symcushion.characteristics import Linear
-from symcushion.scene import load_scene
-from symcushion.strut import HingedStrut
-from symcushion.simulate import build_model, initial_state
+from symcushion.legs.characteristics import Linear
+from symcushion.model.scene import load_scene
+from symcushion.legs.strut import HingedStrut
+from symcushion.scheme.touchdown import build_model, initial_state
 
 ROOT = Path(__file__).resolve().parent.parent
 #: Name of this benchmark in the messages of its checks.

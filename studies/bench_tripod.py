@@ -15,7 +15,7 @@ times L₀²), damped with the same time constant as the elements
 (``APOLLO_TAU``). The polar axis leans ``POLAR_TILT`` inwards from the
 downward vertical (as the example landers of ``studies/``).
 
-Method, as ``studies/bench_touchdown.py``: ``symcushion.codegen.compiled_model``
+Method, as ``studies/bench_touchdown.py``: ``symcushion.compiled.codegen.compiled_model``
 builds each scene's C; its ``touchdown_rollout`` over ``SECONDS`` of the
 scene's own start (the design-limit touchdown: first contact, stroke, the
 downhill legs landing) runs with the scene's own parameters
@@ -39,11 +39,11 @@ import numpy as np
 from bench_check import (BITWISE, ROUNDOFF_RTOL, buffered, check_equal,  # studies/
                          check_rollout)
 from symcushion import simulate
-from symcushion.characteristics import Linear
-from symcushion.codegen import compiled_model
-from symcushion.scene import load_scene
-from symcushion.simulate import build_model, initial_state
-from symcushion.strut import HingedStrut
+from symcushion.legs.characteristics import Linear
+from symcushion.compiled.codegen import compiled_model
+from symcushion.model.scene import load_scene
+from symcushion.scheme.touchdown import build_model, initial_state
+from symcushion.legs.strut import HingedStrut
 
 ROOT = Path(__file__).resolve().parent.parent
 BENCH = "bench_tripod"

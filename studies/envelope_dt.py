@@ -42,10 +42,10 @@ from pathlib import Path
 import numpy as np
 
 from symcushion.envelope import (case_params, evaluate, initial_states, load_study,
-                                 sample_conditions, study_from_dict, wilson_interval)
-from symcushion.layout import state_layout
-from symcushion.scene import read_toml
-from symcushion.touchdown import build_model
+    sample_conditions, study_from_dict, wilson_interval)
+from symcushion.scheme.layout import state_layout
+from symcushion.model.scene import read_toml
+from symcushion.scheme.touchdown import build_model
 
 ROOT = Path(__file__).resolve().parent.parent
 STUDY = ROOT / "studies" / "envelope_lander.toml"

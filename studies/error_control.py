@@ -18,7 +18,7 @@ import warnings
 from error_estimate import SCENES, reference
 
 from symcushion import simulate
-from symcushion.error_control import PEAKS
+from symcushion.run.error_control import PEAKS
 
 RTOLS = (1e-2, 1e-3)
 #: Fixed steps tried, coarsest first: 4 ms × 2⁻ᵏ.

@@ -5,7 +5,7 @@ leg force, stroke) and of its final state by Richardson's rule from a
 companion run: at 2Δt (``estimate="coarse"``, the default) or at Δt/2
 (``estimate="fine"``). This study runs four landers at every Δt of
 :data:`RUN_DTS`, forms both estimates for Δt = 4 … 0.25 ms from those runs
-with the library's own :func:`~symcushion.error_control.estimate_report` (a
+with the library's own :func:`~symcushion.run.error_control.estimate_report` (a
 companion is exactly the run at 2Δt or Δt/2), and compares them with the true
 error against a reference run at :data:`REFERENCE_DT`.
 
@@ -25,8 +25,8 @@ from pathlib import Path
 import numpy as np
 
 from symcushion import build_model, load_scene, simulate
-from symcushion.error_control import COMPANIONS, PEAKS, estimate_report
-from symcushion.layout import state_layout
+from symcushion.run.error_control import COMPANIONS, PEAKS, estimate_report
+from symcushion.scheme.layout import state_layout
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = ("studies/lunar_lander300.toml", "studies/lander_slope.toml",
@@ -108,7 +108,7 @@ def figure(rows, path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from symcushion.output_files import replacing
+    from symcushion.run.output_files import replacing
 
     fig, axes = plt.subplots(2, 2, figsize=(11, 10.5))
     markers = dict(zip(dict.fromkeys(r["scene"] for r in rows), "osD^"))

@@ -58,11 +58,12 @@ from pathlib import Path
 
 import numpy as np
 
-from symcushion.characteristics import Linear
-from symcushion.layout import state_layout
-from symcushion.contact_args import METHODS
-from symcushion.scene import load_scene, symmetric_legs
-from symcushion.simulate import build_model, initial_state, simulate
+from symcushion.legs.characteristics import Linear
+from symcushion.scheme.layout import state_layout
+from symcushion.contact.args import METHODS
+from symcushion.model.scene import load_scene, symmetric_legs
+from symcushion.scheme.touchdown import build_model, initial_state
+from symcushion.run.driver import simulate
 from symcushion.reproduce import measure_claims
 
 ROOT = Path(__file__).resolve().parents[1]

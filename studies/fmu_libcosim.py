@@ -20,8 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from symcushion import build_model, load_scene, simulate
-from symcushion.fmu import build_fmu
-from symcushion.fmu_variables import fmu_variables
+from symcushion.compiled.fmu import build_fmu
+from symcushion.compiled.fmu_variables import fmu_variables
 
 #: libcosim counts time in integer nanoseconds.
 NANOSECONDS = 1e9

@@ -36,9 +36,9 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from absorbers import rollout  # noqa: E402  (studies/absorbers.py, beside this file)
-from symcushion.layout import output_layout, state_layout  # noqa: E402
-from symcushion.output_files import replacing  # noqa: E402
-from symcushion.scene import load_scene  # noqa: E402
+from symcushion.scheme.layout import output_layout, state_layout  # noqa: E402
+from symcushion.run.output_files import replacing  # noqa: E402
+from symcushion.model.scene import load_scene  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 FIGURE = HERE.parent / "figures" / "force_stroke_loop.png"

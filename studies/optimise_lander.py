@@ -23,8 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-from symcushion.optimise import load_study
-from symcushion.simulate import simulate
+from symcushion.design.optimise import load_study
+from symcushion.run.driver import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 STUDY = ROOT / "studies" / "optimise_lander.toml"

@@ -7,7 +7,7 @@ D_p, the rest of the step body (tangent-plane pass, kicks and drift, outputs),
 libm?
 
 Method.
-The scene is generated and built by ``symcushion.codegen.generate`` (the
+The scene is generated and built by ``symcushion.compiled.codegen.generate`` (the
 flags of ``codegen.CFLAGS``), its standalone program ``touchdown`` runs the
 scene's first SECONDS of simulated time REPEAT times, and ``perf record``
 samples it. The generated C keeps every called Function in a C function of
@@ -38,9 +38,9 @@ from pathlib import Path
 
 import casadi as ca
 
-from symcushion.codegen import TOUCHDOWN, generate
-from symcushion.scene import load_scene
-from symcushion.simulate import build_model
+from symcushion.compiled.codegen import TOUCHDOWN, generate
+from symcushion.model.scene import load_scene
+from symcushion.scheme.touchdown import build_model
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = (("Fig. 3", ROOT / "studies" / "fig3.toml", None),
@@ -58,7 +58,7 @@ LIBM = "libm"
 def c_names(source: Path) -> dict:
     """The generated C's static functions ``casadi_fN`` by the Function each implements."""
     text = source.read_text()
-    # a definition may carry the clones macro (symcushion.cbuild.TARGET_CLONES)
+    # a definition may carry the clones macro (symcushion.compiled.cbuild.TARGET_CLONES)
     found = re.findall(r"/\* ([A-Za-z0-9_]+):\([^\n]*\*/\n(?:SYMCUSHION_CLONES )?"
                        r"static int casadi_(f\d+)\(", text)
     return {f"{TOUCHDOWN}_{fn}": name for name, fn in found}

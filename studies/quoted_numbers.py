@@ -39,14 +39,14 @@ from typing import Callable
 import numpy as np
 
 from symcushion.cli import main as cli
-from symcushion.contact_dispatch import contact_step
-from symcushion.driver import Trajectory
+from symcushion.contact.dispatch import contact_step
+from symcushion.run.driver import Trajectory
 from symcushion.envelope import DEFAULT_REST_SPEED
 from symcushion.envelope.statistics import wilson_interval
 from symcushion.reproduce import claims_table, reproduce
-from symcushion.output_files import atomic_write_text
-from symcushion.scene import load_scene
-from symcushion.touchdown import build_model
+from symcushion.run.output_files import atomic_write_text
+from symcushion.model.scene import load_scene
+from symcushion.scheme.touchdown import build_model
 
 ROOT = Path(__file__).resolve().parents[1]
 TUTORIAL = ROOT / "studies" / "tutorial"

@@ -1,7 +1,7 @@
 """What does a stiff axial spring for a rigid rod cost; is RIGID_AXIAL_RATIO = 1e3 right?
 
 A strut given without ``S`` is an axially rigid rod, modelled as a linear
-axial spring of stiffness k_S = ratio·max(M_β′, M_γ′)/L₀² (``symcushion.strut``,
+axial spring of stiffness k_S = ratio·max(M_β′, M_γ′)/L₀² (``symcushion.legs.strut``,
 ``RIGID_AXIAL_RATIO``). A larger ratio is more rigid but stiffer to
 integrate. For ratios 1e1 … 1e8 this study measures, on the Figs. 3–4 scene
 (body 50 kg on four rods of 0.6 m hanging vertically, hinge springs
@@ -25,8 +25,8 @@ from pathlib import Path
 import numpy as np
 
 from symcushion import HingedStrut, Linear
-from symcushion.strut import RIGID_AXIAL_RATIO
-from symcushion import report
+from symcushion.legs.strut import RIGID_AXIAL_RATIO
+from symcushion.run import report
 
 # The Figs. 3–4 scene (studies/fig3.toml), leg 0 in body coordinates.
 MASS = 50.0                        # kg

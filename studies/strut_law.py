@@ -36,11 +36,11 @@ import numpy as np
 from symcushion import HingedStrut, Linear
 from symcushion.envelope.cases import case_params, initial_states
 from symcushion.envelope.study import load_study
-from symcushion.layout import output_layout, state_layout
-from symcushion.quaternion import tilt_np
-from symcushion.obstacles import Plane
-from symcushion.scene import Scene, load_scene, symmetric_legs
-from symcushion.touchdown import build_model, initial_state
+from symcushion.scheme.layout import output_layout, state_layout
+from symcushion.scheme.quaternion import tilt_np
+from symcushion.model.obstacles import Plane
+from symcushion.model.scene import Scene, load_scene, symmetric_legs
+from symcushion.scheme.touchdown import build_model, initial_state
 
 ROOT = Path(__file__).resolve().parents[1]
 FIGURE = ROOT / "figures" / "strut_law.png"

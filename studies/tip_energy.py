@@ -22,9 +22,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 from symcushion.envelope import run_envelope  # noqa: E402
-from symcushion.output_files import replacing  # noqa: E402
-from symcushion.robust import CHECKS, EnvelopeDesign  # noqa: E402
-from symcushion.robust.study import load_robust_study  # noqa: E402
+from symcushion.run.output_files import replacing  # noqa: E402
+from symcushion.design.robust import CHECKS, EnvelopeDesign  # noqa: E402
+from symcushion.design.robust.study import load_robust_study  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 STUDY = HERE / "design_for_envelope.toml"

@@ -21,8 +21,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from symcushion import HingedStrut  # noqa: E402
-from symcushion.characteristics import Crushable, GasSpring, Linear, TwoSided  # noqa: E402
-from symcushion.tripod import InvertedTripod  # noqa: E402
+from symcushion.legs.characteristics import Crushable, GasSpring, Linear, TwoSided  # noqa: E402
+from symcushion.legs.tripod import InvertedTripod  # noqa: E402
 
 FIGURES = Path(__file__).resolve().parents[1] / "figures"
 

@@ -4,25 +4,25 @@ Implements and extends V. F. Khvostov (1976), "On the dynamic interaction of
 shock-absorbing supports with a rigid obstacle" (Izv. AN SSSR, MTT).
 This module only re-exports the public API (docs/architecture.md maps the
 modules behind it). ``symcushion.simulate`` is the function
-:func:`~symcushion.driver.simulate`; ``from symcushion.simulate import ...``
-still reads the compatibility module of the same name.
+:func:`~symcushion.run.driver.simulate`.
 """
-from . import envelope, optimise
-from .characteristics import Crushable, Linear, PiecewiseLinear, TwoSided
-from .curve_base import Curve
-from .contact import solve_contact
-from .contact_args import METHODS
-from .contact_dispatch import contact_step
-from .driver import Trajectory, save, simulate
-from .layout import MODES, output_columns, state_columns
-from .measures import measures_function
-from .obstacles import ImplicitSurface, Plane, Sphere, Terrain
-from .scene import load_scene, scene_from_dict
-from .scene_data import Body, Scene, symmetric_legs
-from .strut import HingedStrut
-from .tripod import InvertedTripod
-from .stability import stable_dt
-from .touchdown import StepModel, build_model, equilibrium_state, initial_state
+from symcushion import envelope
+from symcushion.design import optimise
+from symcushion.legs.characteristics import Crushable, Linear, PiecewiseLinear, TwoSided
+from symcushion.legs.curve_base import Curve
+from symcushion.contact.solve import solve_contact
+from symcushion.contact.args import METHODS
+from symcushion.contact.dispatch import contact_step
+from symcushion.run.driver import Trajectory, save, simulate
+from symcushion.scheme.layout import MODES, output_columns, state_columns
+from symcushion.scheme.measures import measures_function
+from symcushion.model.obstacles import ImplicitSurface, Plane, Sphere, Terrain
+from symcushion.model.scene import load_scene, scene_from_dict
+from symcushion.model.scene_data import Body, Scene, symmetric_legs
+from symcushion.legs.strut import HingedStrut
+from symcushion.legs.tripod import InvertedTripod
+from symcushion.scheme.stability import stable_dt
+from symcushion.scheme.touchdown import StepModel, build_model, equilibrium_state, initial_state
 
 __all__ = ["Crushable", "Curve", "Linear", "PiecewiseLinear", "TwoSided", "HingedStrut",
            "InvertedTripod",

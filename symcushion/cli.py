@@ -9,11 +9,10 @@ import sys
 import warnings
 from pathlib import Path
 
-from .interrupts import (EXIT_BAD_INPUT, EXIT_ERRORS, EXIT_INTERRUPTED,  # noqa: F401
-                         EXIT_OUTPUT_EXISTS, EXIT_WARNINGS, Terminated, interrupt_code,
-                         signals_handled)
-from .cli_parser import build_parser
-from .output_files import check_out_dir, check_output_file, claim_output
+from symcushion.run.interrupts import (EXIT_BAD_INPUT, EXIT_ERRORS, EXIT_INTERRUPTED,
+    EXIT_OUTPUT_EXISTS, EXIT_WARNINGS, Terminated, interrupt_code, signals_handled)
+from symcushion.cli_parser import build_parser
+from symcushion.run.output_files import check_out_dir, check_output_file, claim_output
 
 __all__ = ["main"]
 
@@ -25,7 +24,7 @@ REPRODUCE_FILES = tuple(f"{fig}{suffix}" for fig in ("fig3", "fig4")
 
 
 def _cmd_reproduce(args):
-    from .reproduce import reproduce
+    from symcushion.reproduce import reproduce
 
     if args.update_figures and args.out is not None:
         raise ValueError("give either `--out DIR` or `--update-figures` (which writes into "
@@ -42,7 +41,7 @@ def _cmd_reproduce(args):
 
 def _scene_and_overrides(args):
     """The scene of a ``simulate`` command with its command-line overrides applied."""
-    from .scene import load_scene
+    from symcushion.model.scene import load_scene
 
     scene = load_scene(args.scene)
     overrides = {k: v for k, v in (("duration", args.duration), ("dt", args.dt),
@@ -56,16 +55,16 @@ def _scene_and_overrides(args):
 
 def _run_monitor(scene, model):
     """The run monitor of a simulation: the physical checks during the run (docs/checks.md)."""
-    from .monitor import RunMonitor
+    from symcushion.run.monitor import RunMonitor
 
     return RunMonitor(scene, model)
 
 
 def _cmd_simulate(args):
-    from .results import (RUN_FILES, ResultWriter, claim_output, remove_stale, result_dir,
-                          trajectory_columns, versions)
-    from .scene import read_toml
-    from .touchdown import build_model
+    from symcushion.run.results import (RUN_FILES, ResultWriter, claim_output, remove_stale,
+        result_dir, trajectory_columns, versions)
+    from symcushion.model.scene import read_toml
+    from symcushion.scheme.touchdown import build_model
 
     scene, overrides = _scene_and_overrides(args)
     directory = result_dir(args.out, scene.name)        # checked before any work
@@ -141,7 +140,7 @@ def _run_status(findings, where, strict) -> int:
 
 def _note_no_touchdown(traj):
     """A run that never touched down says so: a warning line and a run.json entry."""
-    from .monitor import no_touchdown
+    from symcushion.run.monitor import no_touchdown
 
     finding = no_touchdown(traj)
     if finding is not None:
@@ -158,7 +157,7 @@ def _keep_interrupted(writer, meta, exc) -> str | None:
     Returns a note of what was kept for the one-line exit message (None if
     no block had finished: the writer's exit then removes its temporary files).
     """
-    from .results import RUN_FILES, remove_stale
+    from symcushion.run.results import RUN_FILES, remove_stale
 
     if writer.rows < 2:                         # the initial row only
         return None
@@ -177,8 +176,8 @@ def _keep_interrupted(writer, meta, exc) -> str | None:
 def _simulate_reporting(scene, model, args, writer):
     """Run the simulation; the scene's physics warnings (``checks.preflight``) are
     printed as ``warning:`` lines and recorded with the run's own warnings."""
-    from .checks import PhysicsWarning
-    from .driver import simulate
+    from symcushion.run.checks import PhysicsWarning
+    from symcushion.run.driver import simulate
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", PhysicsWarning)
@@ -208,8 +207,8 @@ def _summary(scene) -> dict:
 
 
 def _figures(traj, scene, directory, frames):
-    from .animate import animate
-    from .plots import summary_figure
+    from symcushion.viz.animate import animate
+    from symcushion.viz.plots import summary_figure
 
     summary_figure(traj, directory / "summary.png")
     print(f"wrote {directory / 'summary.png'}", flush=True)
@@ -218,13 +217,13 @@ def _figures(traj, scene, directory, frames):
 
 
 def _cmd_plot(args):
-    from .driver import Trajectory
-    from .scene import scene_from_dict
+    from symcushion.run.driver import Trajectory
+    from symcushion.model.scene import scene_from_dict
 
     traj = Trajectory.load(args.result)
     meta = traj.info
     if args.no_animation or not meta.get("scene"):
-        from .plots import summary_figure
+        from symcushion.viz.plots import summary_figure
 
         summary_figure(traj, Path(args.result) / "summary.png")
         print(f"wrote {Path(args.result) / 'summary.png'}"
@@ -238,8 +237,8 @@ def _cmd_plot(args):
 
 
 def _cmd_check(args):
-    from .checks import check_file
-    from .scene import read_toml
+    from symcushion.run.checks import check_file
+    from symcushion.model.scene import read_toml
 
     stdin = str(args.scene) == "-"
     name = "<stdin>" if stdin else str(args.scene)
@@ -261,7 +260,7 @@ def _cmd_check(args):
 
 
 def _read_stdin_toml() -> dict:
-    from .scene import tomllib
+    from symcushion.model.scene import tomllib
 
     try:
         return tomllib.loads(sys.stdin.read())
@@ -270,7 +269,7 @@ def _read_stdin_toml() -> dict:
 
 
 def _cmd_codegen(args):
-    from .codegen import generate
+    from symcushion.compiled.codegen import generate
 
     try:
         gen = generate(args.out, scene=args.scene, build=args.build, steps=args.steps,
@@ -286,7 +285,7 @@ def _cmd_codegen(args):
 
 
 def _cmd_fmu(args):
-    from .fmu import build_fmu
+    from symcushion.compiled.fmu import build_fmu
 
     try:
         build_fmu(args.scene, args.out, progress=True)
@@ -305,7 +304,7 @@ def _set_max_iter(ipopt: dict, value):
 
 
 def _cmd_optimise(args):
-    from .optimise import load_study
+    from symcushion.design.optimise import load_study
 
     study = load_study(args.study)
     _set_max_iter(study.ipopt, args.max_iter)
@@ -325,14 +324,14 @@ def _cmd_optimise(args):
     return 0 if result.success and result.evaluation.feasible else 1
 
 
-#: What ``design`` writes into its folder (``symcushion.robust.report``).
+#: What ``design`` writes into its folder (``symcushion.design.robust.report``).
 DESIGN_FILES = ("result.json", "scenarios.csv", "before", "after", "before_after.png",
                 "curves.png")
 
 
 def _cmd_design(args):
-    from .output_files import remove_stale
-    from .robust.study import load_robust_study, run_robust_study
+    from symcushion.run.output_files import remove_stale
+    from symcushion.design.robust.study import load_robust_study, run_robust_study
 
     study = load_robust_study(args.study)
     _set_max_iter(study.ipopt, args.max_iter)
@@ -365,14 +364,14 @@ def _cmd_design(args):
 
 
 def _finished_batches(out) -> int:
-    from .envelope.runner import BATCH_DIR
+    from symcushion.envelope.runner import BATCH_DIR
 
     return len(list((out / BATCH_DIR).glob("batch_*.npz"))) if (out / BATCH_DIR).is_dir() else 0
 
 
 def _kept_batches(out, study) -> str:
     """What an interrupted envelope keeps, and how to go on."""
-    from .envelope.runner import BATCH_DIR
+    from symcushion.envelope.runner import BATCH_DIR
 
     kept = _finished_batches(out)
     if not kept:
@@ -383,8 +382,8 @@ def _kept_batches(out, study) -> str:
 
 def _claim_study_folder(out, owned, args):
     """The output folder of an envelope study: new, resumed, or overwritten (checked first)."""
-    from .envelope.runner import BATCH_DIR
-    from .output_files import OutputExists, claim_output, remove_stale
+    from symcushion.envelope.runner import BATCH_DIR
+    from symcushion.run.output_files import OutputExists, claim_output, remove_stale
 
     interrupted = (out / BATCH_DIR).is_dir()
     if args.resume and args.overwrite:
@@ -403,8 +402,8 @@ def _claim_study_folder(out, owned, args):
 
 
 def _cmd_envelope(args):
-    from .envelope import load_study, run_envelope
-    from .envelope.runner import output_names
+    from symcushion.envelope import load_study, run_envelope
+    from symcushion.envelope.runner import output_names
 
     study = load_study(args.study)
     changes = {k: v for k, v in (("n", args.n), ("seed", args.seed), ("batch", args.batch))
@@ -442,7 +441,7 @@ def _cmd_envelope(args):
 
 
 def _cmd_view(args):
-    from .viewer import DEFAULT_VIEW_FRAMES, write_viewer
+    from symcushion.viz.viewer import DEFAULT_VIEW_FRAMES, write_viewer
 
     try:
         path = write_viewer(args.result, args.out)
@@ -481,7 +480,7 @@ def main(argv=None) -> int:
 
 
 def _error_status(exc) -> int:
-    from .output_files import OutputExists
+    from symcushion.run.output_files import OutputExists
 
     return EXIT_OUTPUT_EXISTS if isinstance(exc, OutputExists) else EXIT_BAD_INPUT
 

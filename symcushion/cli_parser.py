@@ -9,9 +9,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from . import __version__
-from .animate import DEFAULT_FRAMES
-from .interrupts import EXIT_OUTPUT_EXISTS, EXIT_WARNINGS
+from symcushion import __version__
+from symcushion.viz.animate import DEFAULT_FRAMES
+from symcushion.run.interrupts import EXIT_OUTPUT_EXISTS, EXIT_WARNINGS
 
 __all__ = ["build_parser"]
 

@@ -16,11 +16,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .output_files import atomic_write_text, check_out_dir, replacing
-from .scene import load_scene
-from .contact_args import METHODS
-from .driver import Trajectory, simulate
-from .touchdown import build_model
+from symcushion.run.output_files import atomic_write_text, check_out_dir, replacing
+from symcushion.model.scene import load_scene
+from symcushion.contact.args import METHODS
+from symcushion.run.driver import Trajectory, simulate
+from symcushion.scheme.touchdown import build_model
 
 __all__ = ["Claims", "measure_claims", "reproduce", "METHODS_ORDER"]
 

@@ -28,9 +28,9 @@ import numpy as np
 import pytest
 
 import oracle_contact
-from symcushion.characteristics import Linear
-from symcushion.obstacles import Plane
-from symcushion.scene import Body, Scene, load_scene, symmetric_legs
+from symcushion.legs.characteristics import Linear
+from symcushion.model.obstacles import Plane
+from symcushion.model.scene import Body, Scene, load_scene, symmetric_legs
 
 STUDIES = ROOT / "studies"
 

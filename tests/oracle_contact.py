@@ -3,7 +3,7 @@
 This module is a *test oracle*: a plain, scalar NumPy transcription of the
 three contact steps of Khvostov (1976) section 1, written line by line from
 ``docs/contact-spec.md`` and ``docs/paper-notes.md`` without looking at
-``symcushion/contact.py``.  It is not imported by the package and imports
+``symcushion/contact/solve.py``.  It is not imported by the package and imports
 nothing from it; ``tests/test_contact_oracle.py`` compares the package's
 CasADi Functions with it.
 

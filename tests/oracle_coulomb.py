@@ -1,7 +1,7 @@
 """Brute-force oracle of the exact Coulomb contact step -- independent of the quartic.
 
 Test oracle, not part of the package: it imports nothing from ``symcushion``
-except, in :func:`random_cases`, ``symcushion.strut`` to build stiffness
+except, in :func:`random_cases`, ``symcushion.legs.strut`` to build stiffness
 matrices of real struts. It finds *every* slip solution of the backward-Euler
 Coulomb step by scanning the direction of the slip, and states the step's
 selection rule (:func:`chosen`), so that ``tests/test_contact_exact.py`` can check the
@@ -239,9 +239,9 @@ def _spd(rng, m, log_cond):
 
 
 def _strut_dp(rng, m):
-    """D_p of real struts (symcushion.strut) at random poses: non-symmetric off rest."""
-    from symcushion.characteristics import Linear
-    from symcushion.strut import HingedStrut
+    """D_p of real struts (symcushion.legs.strut) at random poses: non-symmetric off rest."""
+    from symcushion.legs.characteristics import Linear
+    from symcushion.legs.strut import HingedStrut
 
     out = np.empty((m, 3, 3))
     per = 500

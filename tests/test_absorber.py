@@ -1,15 +1,15 @@
-"""Absorbers with memory (symcushion.absorber): the law (A1)-(A4) and the step on it."""
+"""Absorbers with memory (symcushion.legs.absorber): the law (A1)-(A4) and the step on it."""
 from __future__ import annotations
 
 import casadi as ca
 import numpy as np
 import pytest
 
-from symcushion import absorber
-from symcushion.characteristics import Crushable, Linear, PiecewiseLinear
-from symcushion.layout import output_layout, state_layout
-from symcushion.scene import load_scene, read_toml, scene_from_dict
-from symcushion.touchdown import build_model, initial_state
+from symcushion.legs import absorber
+from symcushion.legs.characteristics import Crushable, Linear, PiecewiseLinear
+from symcushion.scheme.layout import output_layout, state_layout
+from symcushion.model.scene import load_scene, read_toml, scene_from_dict
+from symcushion.scheme.touchdown import build_model, initial_state
 
 from conftest import STUDIES
 
@@ -301,7 +301,7 @@ def test_a_free_foots_damped_hinges_relax_instead_of_snapping_back():
     undamped one is at rest at once: at lift-off the foot does not jump by the bending
     deflection its dampers held (which put the damped lander's rocking feet back into
     the ground)."""
-    from symcushion.strut import HingedStrut
+    from symcushion.legs.strut import HingedStrut
     kw = dict(hinge=(0, 0, 0), e0=(0.3, 0, -1), en=(-0.4, 0.1, -1), length=0.8,
               S=Crushable(**HONEYCOMB, damping=350.0))
     k, c, dt = 2e4, 70.0, 1e-3
@@ -419,7 +419,7 @@ def test_a_gas_spring_carries_the_weight_where_its_polytropic_law_says():
 
 
 def test_an_absorber_that_bottoms_is_reported_and_held_by_its_stop():
-    from symcushion.driver import RunWarning, simulate
+    from symcushion.run.driver import RunWarning, simulate
     data = read_toml(STUDIES / "tutorial" / "leg_design.toml")
     data = {k: data[k] for k in ("scene", "body", "leg", "obstacle")}
     data["scene"].update(hysteresis="memory", duration=0.1)
@@ -449,7 +449,7 @@ def test_scene_files_take_the_new_element_fields():
 def test_the_bodys_energy_loss_is_what_the_legs_took_at_second_order():
     """E(t) − E(0) + Σ (work on the elements + friction) = 0 to O(Δt²) on the lunar lander;
     the run's totals (run.json's ``energy``) are the sums of the per-step outputs."""
-    from symcushion.driver import simulate
+    from symcushion.run.driver import simulate
     residuals = []
     for dt in (1e-3, 5e-4, 2.5e-4):
         scene, X, Y = _lunar("memory", dt=dt, duration=1.0)
@@ -501,7 +501,7 @@ def test_hinge_dampers_keep_a_sliding_damped_foot_on_the_ground():
 def test_a_hinge_damper_adds_its_moment_over_the_strut_length():
     """M_β + c_β·β′ and M_γ + c_γ·γ′ enter (2.1) like the springs' moments: the force
     differs from the undamped one by c·rate/L along e_β and e_γ (with M_γ's sign)."""
-    from symcushion.strut import HingedStrut
+    from symcushion.legs.strut import HingedStrut
     kw = dict(hinge=(0, 0, 0), e0=(0.3, 0, -1), en=(-0.4, 0.1, -1), length=0.8,
               S=Crushable(**HONEYCOMB))
     damped = HingedStrut(M_beta=Linear(2e4, damping=70.0), M_gamma=Linear(3e4, damping=90.0),

@@ -9,10 +9,11 @@ import subprocess
 import numpy as np
 import pytest
 
-from symcushion import codegen
-from symcushion.layout import output_layout
-from symcushion.scene import load_scene
-from symcushion.simulate import build_model, initial_state, simulate
+from symcushion.compiled import codegen
+from symcushion.scheme.layout import output_layout
+from symcushion.model.scene import load_scene
+from symcushion.scheme.touchdown import build_model, initial_state
+from symcushion.run.driver import simulate
 
 from conftest import STUDIES
 

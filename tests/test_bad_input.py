@@ -10,14 +10,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from symcushion.characteristics import Linear, PiecewiseLinear
-from symcushion.checks import PhysicsWarning, RunMonitor, check_scene
+from symcushion.legs.characteristics import Linear, PiecewiseLinear
+from symcushion.run.checks import PhysicsWarning, RunMonitor, check_scene
 from symcushion.cli import main
-from symcushion.scene import Scene, load_scene, scene_from_dict
-from symcushion.simulate import simulate
-from symcushion.validation import (SceneError, boolean, choice, direction, integer, real,
-                                   vector)
-from symcushion.validation import path as validate_path
+from symcushion.model.scene import Scene, load_scene, scene_from_dict
+from symcushion.run.driver import simulate
+from symcushion.model.validation import (SceneError, boolean, choice, direction, integer, real,
+    vector)
+from symcushion.model.validation import path as validate_path
 
 if sys.version_info >= (3, 11):
     import tomllib

@@ -15,12 +15,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from symcushion.codegen import compiled_model
+from symcushion.compiled.codegen import compiled_model
 from symcushion.envelope import load_study, sample_conditions
-from symcushion.optimise import load_study as load_design_study
-from symcushion.robust import EnvelopeDesign
-from symcushion.robust.study import load_robust_study
-from symcushion.simulate import initial_state
+from symcushion.design.optimise import load_study as load_design_study
+from symcushion.design.robust import EnvelopeDesign
+from symcushion.design.robust.study import load_robust_study
+from symcushion.scheme.touchdown import initial_state
 
 STUDIES = Path(__file__).resolve().parents[1] / "studies"
 sys.path.insert(0, str(STUDIES))       # the benchmarks import each other as scripts
@@ -107,8 +107,8 @@ def test_touchdown_mujoco_check_nonlinear_legs(path):
     linear springs of their slopes at rest (bench_touchdown.mujoco_scene), checked the same way."""
     pytest.importorskip("mujoco", reason="the MuJoCo peer needs the optional extra "
                                          "symcushion[peers]")
-    from symcushion.characteristics import Linear
-    from symcushion.scene import load_scene
+    from symcushion.legs.characteristics import Linear
+    from symcushion.model.scene import load_scene
     scene = load_scene(STUDIES / path)
     linear = bench_touchdown.mujoco_scene(scene)
     assert linear is not scene and all(isinstance(el.curve, Linear) for leg in linear.legs

@@ -3,11 +3,12 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from symcushion.body_step import BodyParams, body_acceleration, drift, half_kick, legs_wrench
-from symcushion.layout import output_layout, state_layout
-from symcushion.quaternion import quat_from_axis_angle_np, quat_to_rot_np
-from symcushion.simulate import build_model, initial_state
-from symcushion.stability import body_stiffness, stable_dt
+from symcushion.scheme.body_step import (BodyParams, body_acceleration, drift, half_kick,
+    legs_wrench)
+from symcushion.scheme.layout import output_layout, state_layout
+from symcushion.scheme.quaternion import quat_from_axis_angle_np, quat_to_rot_np
+from symcushion.scheme.touchdown import build_model, initial_state
+from symcushion.scheme.stability import body_stiffness, stable_dt
 
 #: Agreement of quantities computed two ways in double precision from O(1..1000) inputs.
 ROUND_OFF = 1e-9

@@ -1,6 +1,6 @@
 """The absorber's branch switch located inside the step (``events = "branch"``).
 
-``symcushion.branch_switch`` weights the kick of the step in which a leg's
+``symcushion.scheme.branch_switch`` weights the kick of the step in which a leg's
 axial force changes between its loading and unloading branches at the
 located switch time. These tests check that it does what it claims and
 nothing else: second order through a clean switch (the lander on level
@@ -17,11 +17,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import symcushion.touchdown_events as touchdown
-from symcushion.optimise import study_from_dict
-from symcushion.layout import state_layout
-from symcushion.scene import SceneError, load_scene, read_toml, scene_from_dict
-from symcushion.simulate import build_model, initial_state, simulate
+import symcushion.scheme.touchdown_events as touchdown
+from symcushion.design.optimise import study_from_dict
+from symcushion.scheme.layout import state_layout
+from symcushion.model.scene import SceneError, load_scene, read_toml, scene_from_dict
+from symcushion.scheme.touchdown import build_model, initial_state
+from symcushion.run.driver import simulate
 
 from research import event_order   # not installed: tests/conftest.py puts it on sys.path
 

@@ -1,4 +1,4 @@
-"""Tests of ``symcushion.characteristics``: the resistance curves f(x, sign ẋ).
+"""Tests of ``symcushion.legs.characteristics``: the resistance curves f(x, sign ẋ).
 
 Each curve (Linear, PiecewiseLinear, Crushable; exact and smooth; with and
 without an unloading branch) is checked against this file's own NumPy
@@ -17,7 +17,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from symcushion import Crushable, Curve, Linear, PiecewiseLinear
-from symcushion.curve_base import KINK_WIDTH, RATE_WIDTH
+from symcushion.legs.curve_base import KINK_WIDTH, RATE_WIDTH
 
 #: Relative agreement of two evaluations of the same expression (float vs
 #: SX vs MX, hand slope vs casadi.jacobian): a few ulps of the curve's scale.
@@ -493,7 +493,7 @@ def test_zero_deflection_loads_whatever_the_sign_of_the_rate():
     """A strut's unloaded pose carries round-off deflections (1e-16) of either sign:
     from there the element can only load, so the loading branch is taken even
     where x·ẋ < 0 by that round-off; past ZERO_DEFLECTION the test is x·ẋ again."""
-    from symcushion.curve_base import ZERO_DEFLECTION
+    from symcushion.legs.curve_base import ZERO_DEFLECTION
     curve = Crushable(1e5, 2500.0, 5e3, unloading=PiecewiseLinear([-0.3, -0.03, 0.0],
                                                                    [-500.0, -500.0, 0.0]))
     loading, unloading = 1e5, 500.0 / 0.03
@@ -515,7 +515,7 @@ def test_zero_deflection_loads_whatever_the_sign_of_the_rate():
 # ---------------------------------------------------------------------------
 
 def _two_sided(**options):
-    from symcushion.characteristics import TwoSided
+    from symcushion.legs.characteristics import TwoSided
     return TwoSided(Crushable(2e6, 8e3, 1e4), Crushable(1e6, 5e3, 2e3), **options)
 
 
@@ -552,7 +552,7 @@ def test_two_sided_slope_equals_jacobian_and_differences(smooth):
 
 
 def test_two_sided_theta_and_validation():
-    from symcushion.characteristics import TwoSided
+    from symcushion.legs.characteristics import TwoSided
     curve = _two_sided()
     theta = curve.param_values.copy()
     theta[4] = 7e3                                            # tension crush force

@@ -7,12 +7,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from symcushion.checks import (BODY_TOLERANCE, START_TOLERANCE, Finding, PhysicsWarning,
-                               RunMonitor, check_scene, preflight)
-from symcushion.monitor import DEFAULT_TOLERANCES
-from symcushion.scene import load_scene, scene_from_dict
-from symcushion.simulate import BODY_STATE, LEG_STATE, build_model, initial_state, simulate
-from symcushion.validation import SceneError
+from symcushion.run.checks import (BODY_TOLERANCE, START_TOLERANCE, Finding, PhysicsWarning,
+    RunMonitor, check_scene, preflight)
+from symcushion.run.monitor import DEFAULT_TOLERANCES
+from symcushion.model.scene import load_scene, scene_from_dict
+from symcushion.scheme.layout import BODY_STATE, LEG_STATE
+from symcushion.scheme.touchdown import build_model, initial_state
+from symcushion.run.driver import simulate
+from symcushion.model.validation import SceneError
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = ("fig3.toml", "fig4.toml", "lander_slope.toml")
@@ -162,8 +164,8 @@ def test_simulate_runs_preflight():
 def test_negative_slope_away_from_rest_is_a_warning():
     scene = fig3()
     data = {"type": "piecewise", "x": [-1.0, 0.0, 0.5, 1.0], "f": [-1200.0, 0.0, 600.0, 300.0]}
-    from symcushion.scene import _curve
-    from symcushion.validation import Table
+    from symcushion.model.scene import _curve
+    from symcushion.model.validation import Table
     curve = _curve(Table(data, "legs.M_beta", "test"))
     legs = [type(leg)(leg.hinge, leg.e0, leg.en, leg.length, M_beta=curve,
                       M_gamma=leg.elements[-1].curve) for leg in scene.legs]
@@ -179,7 +181,7 @@ def test_dt_a_little_above_the_stable_step_is_a_warning():
 
 
 def test_monitor_reports_a_foot_in_contact_off_the_terrain_grid():
-    from symcushion.obstacles import Terrain
+    from symcushion.model.obstacles import Terrain
     scene = fig3().with_(obstacles=[Terrain.crater()])      # grid ±3 m
     x = initial_state(scene)
     foot0 = BODY_STATE
@@ -191,8 +193,8 @@ def test_monitor_reports_a_foot_in_contact_off_the_terrain_grid():
 def test_a_frictionless_leg_without_a_hinge_spring_is_refused_before_it_falls_through():
     """μ = 0 and legs tilted 20° with no M_beta: no foot could take load (the contact step
     finds no slide along the free direction), so check reports it and simulate refuses."""
-    from symcushion.characteristics import Linear as _Linear
-    from symcushion.strut import HingedStrut
+    from symcushion.legs.characteristics import Linear as _Linear
+    from symcushion.legs.strut import HingedStrut
     lander = load_scene(ROOT / "studies" / "tutorial" / "lander.toml")
     legs = [HingedStrut(hinge=leg.hinge, e0=leg.e0, en=leg.en, length=leg.length,
                         S=_Linear(1e5), M_gamma=_Linear(2e4)) for leg in lander.legs]
@@ -210,8 +212,8 @@ def test_a_frictionless_leg_without_a_hinge_spring_is_refused_before_it_falls_th
 def test_a_leg_damped_on_its_axis_alone_is_warned():
     """Dampers of one time constant on every element pass; an axial damper alone is
     warned about, naming the leg and the time constants (docs/absorbers.md)."""
-    from symcushion.checks import check_scene
-    from symcushion.scene import read_toml
+    from symcushion.run.checks import check_scene
+    from symcushion.model.scene import read_toml
     studies = Path(__file__).resolve().parents[1] / "studies"
     data = read_toml(studies / "lander_damped.toml")
     assert not [f for f in check_scene(scene_from_dict(data)) if f.kind == "damping_times"]

@@ -10,7 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from symcushion import __version__, cli, interrupts
+from symcushion import __version__, cli
+from symcushion.run import interrupts
 
 ROOT = Path(__file__).resolve().parents[1]
 FIG3 = ROOT / "studies" / "fig3.toml"
@@ -79,7 +80,7 @@ def test_bad_out_fails_before_the_run(tmp_path, monkeypatch, capsys, where):
     def no_build(*args, **kwargs):
         raise AssertionError("the model was built before the output path was checked")
 
-    monkeypatch.setattr("symcushion.touchdown.build_model", no_build)   # what the CLI calls
+    monkeypatch.setattr("symcushion.scheme.touchdown.build_model", no_build)   # what the CLI calls
     afile = tmp_path / "afile"
     afile.write_text("x")
     out = afile if where == "file" else afile / "sub"
@@ -157,7 +158,7 @@ def _run_and_kill(out: Path, duration: float, sig=signal.SIGTERM, extra=()):
 
 def _assert_whole_interrupted_run(directory):
     """The files of an interrupted run: whole, the same rows, marked in run.json."""
-    from symcushion.results import RUN_FILES
+    from symcushion.run.results import RUN_FILES
 
     assert {p.name for p in directory.iterdir()} <= set(RUN_FILES) | {"notes.txt"}
     meta = json.loads((directory / "run.json").read_text())

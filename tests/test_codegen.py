@@ -1,4 +1,4 @@
-"""C code generation (symcushion.codegen): compiled code against the SX Functions.
+"""C code generation (symcushion.compiled.codegen): compiled code against the SX Functions.
 
 One build of the Fig. 3 scene (4 legs, shortened to SHORT_DURATION) serves
 all tests: the generated sources must compile without a word from gcc under
@@ -17,11 +17,12 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from symcushion import codegen
+from symcushion.compiled import codegen
 from symcushion.cli import main as cli_main
-from symcushion.contact_dispatch import contact_step
-from symcushion.scene import load_scene
-from symcushion.simulate import build_model, initial_state, simulate
+from symcushion.contact.dispatch import contact_step
+from symcushion.model.scene import load_scene
+from symcushion.scheme.touchdown import build_model, initial_state
+from symcushion.run.driver import simulate
 
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -1,4 +1,4 @@
-"""The design NLP on compiled C (symcushion.compiled_nlp) against the VM path.
+"""The design NLP on compiled C (symcushion.design.compiled_nlp) against the VM path.
 
 The 1-D absorber (studies/absorber_1d.toml) is the test problem: one leg,
 200 steps, so that its library compiles in seconds. It is compiled at -O0
@@ -14,9 +14,9 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from symcushion.codegen import find_compiler
-from symcushion.compiled_nlp import COMPILE_FLAGS, compile_design, scenario_function
-from symcushion.optimise import load_study
+from symcushion.compiled.codegen import find_compiler
+from symcushion.design.compiled_nlp import COMPILE_FLAGS, compile_design, scenario_function
+from symcushion.design.optimise import load_study
 
 ROOT = Path(__file__).resolve().parents[1]
 ABSORBER = ROOT / "studies" / "absorber_1d.toml"
@@ -186,7 +186,7 @@ def test_study_key_compile_selects_the_compiled_path():
     """``[solver] compile = true`` in a study file makes Study.solve compile."""
     import tomllib
 
-    from symcushion.optimise import study_from_dict
+    from symcushion.design.optimise import study_from_dict
     data = tomllib.loads(ABSORBER.read_text())
     assert load_study(ABSORBER).compiled is None         # unsaid: compile where gcc is found
     data["solver"]["compile"] = True
@@ -198,7 +198,7 @@ def test_study_key_compile_selects_the_compiled_path():
 
 def test_a_study_that_says_nothing_compiles_where_gcc_is_found(monkeypatch):
     """``compile`` unsaid: the C path with a compiler, the VM with a message without one."""
-    from symcushion.optimise import study as study_module
+    from symcushion.design.optimise import study as study_module
     said = []
     monkeypatch.setattr(study_module, "find_compiler", lambda: "/usr/bin/gcc")
     assert study_module.resolve_compiled(None, said.append) is True and not said

@@ -13,16 +13,8 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from symcushion.contact import (
-    INPUT_NAMES,
-    METHODS,
-    OUTPUT_NAMES,
-    ContactResult,
-    contact_step,
-    contact_step_expr,
-    solve_contact,
-    stack_inputs,
-)
+from symcushion.contact import (INPUT_NAMES, METHODS, OUTPUT_NAMES, ContactResult, contact_step,
+    contact_step_expr, solve_contact, stack_inputs)
 
 # Tolerances of the tests (not of the method).
 CONE_RTOL = 1e-10  # C(P) <= CONE_RTOL |P|^2 in contact (brief)

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 import oracle_coulomb as oq
-from symcushion import contact_dispatch as contact
-from symcushion.contact_dispatch import contact_step, contact_step_call
+from symcushion.contact import dispatch as contact
+from symcushion.contact.dispatch import contact_step, contact_step_call
 
 SEED = 16
 #: Cases per class of oracle_coulomb.random_cases for the bit test.

@@ -19,7 +19,7 @@ import pytest
 
 import oracle_coulomb as oq
 from symcushion.contact import solve_contact
-from symcushion.contact_dispatch import contact_step
+from symcushion.contact.dispatch import contact_step
 
 #: Random cases per class (the issue asks for at least 10 000).
 CASES_PER_CLASS = 10_000

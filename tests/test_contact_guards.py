@@ -14,8 +14,8 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from symcushion import codegen
-from symcushion.contact_guards import at_least, at_most, exceeds, within
+from symcushion.compiled import codegen
+from symcushion.contact.guards import at_least, at_most, exceeds, within
 
 #: x of every comparison: signed zeros, infinities, NaN, the guard scale
 #: TINY and the smallest subnormal.

@@ -1,4 +1,4 @@
-"""The midpoint slip rule of the implicit contact step (symcushion.contact_midpoint).
+"""The midpoint slip rule of the implicit contact step (symcushion.contact.midpoint).
 
 Checked against closed forms and a fine reference: the fitted weight θ(z);
 one step of an isotropic foot against the exact turn of its force,
@@ -16,12 +16,13 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from symcushion.contact_dispatch import contact_step
-from symcushion.contact_midpoint import THETA_SERIES, _build, fitted_theta
-from symcushion.optimise import study_from_dict
-from symcushion.scene import SceneError, load_scene, read_toml, scene_from_dict
-from symcushion.layout import output_layout, state_layout
-from symcushion.simulate import build_model, initial_state, simulate
+from symcushion.contact.dispatch import contact_step
+from symcushion.contact.midpoint import THETA_SERIES, _build, fitted_theta
+from symcushion.design.optimise import study_from_dict
+from symcushion.model.scene import SceneError, load_scene, read_toml, scene_from_dict
+from symcushion.scheme.layout import output_layout, state_layout
+from symcushion.scheme.touchdown import build_model, initial_state
+from symcushion.run.driver import simulate
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 
 from symcushion import envelope as ev
-from symcushion.codegen import find_compiler
-from symcushion.scene import read_toml
-from symcushion.simulate import build_model
+from symcushion.compiled.codegen import find_compiler
+from symcushion.model.scene import read_toml
+from symcushion.scheme.touchdown import build_model
 
 from pathlib import Path
 
@@ -376,7 +376,7 @@ def test_a_built_study_is_found_by_its_index_without_generating_c(study, library
     (as a new process reads its file) without building the step's graph; another Δt
     is not."""
     from symcushion.envelope import build as eb
-    from symcushion.scene import scene_from_dict
+    from symcushion.model.scene import scene_from_dict
 
     def scene():                                # a fresh Scene, as a new process reads it
         return scene_from_dict(study.scene_data, study.source).with_(

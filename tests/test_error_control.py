@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from symcushion import build_model, load_scene, simulate
-from symcushion.driver import RunWarning
-from symcushion.error_control import (PEAKS, PeakTracker, ToleranceError, parabola_peak,
-                                      richardson)
+from symcushion.run.driver import RunWarning
+from symcushion.run.error_control import (PEAKS, PeakTracker, ToleranceError, parabola_peak,
+    richardson)
 
 from conftest import ROOT, STUDIES
 

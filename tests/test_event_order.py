@@ -26,9 +26,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from symcushion.layout import state_layout
-from symcushion.scene import read_toml, scene_from_dict
-from symcushion.simulate import build_model, simulate
+from symcushion.scheme.layout import state_layout
+from symcushion.model.scene import read_toml, scene_from_dict
+from symcushion.scheme.touchdown import build_model
+from symcushion.run.driver import simulate
 
 from research import event_order   # not installed: tests/conftest.py puts it on sys.path
 
@@ -736,7 +737,7 @@ def test_roundoff_text_and_figure_give_what_a_whole_run_fit_needs(tmp_path, monk
 
 
 def test_write_section_replaces_one_section_and_leaves_no_temporary_file(tmp_path):
-    from symcushion import report
+    from symcushion.run import report
 
     path = tmp_path / "page.md"
     report.write_section(path, "A", "first")

@@ -1,11 +1,11 @@
-"""The touchdown FMU (symcushion.fmu), checked by a real importer: FMPy.
+"""The touchdown FMU (symcushion.compiled.fmu), checked by a real importer: FMPy.
 
 Three FMUs are built once, concurrently, through the command line
 (``symcushion fmu``): Figs. 3-4 and the tutorial lander. FMPy's validator
 must find no problem; FMPy's co-simulation at the scene's Δt must give the
 trajectory of ``symcushion.simulate`` (to 1e-12; it is the same bits); a
 held thrust must move the body as the Python reference
-:func:`symcushion.fmu.held_input_step` on the uncompiled step does; a saved
+:func:`symcushion.compiled.fmu.held_input_step` on the uncompiled step does; a saved
 FMU state (in memory or serialised) must continue bit for bit. Skipped, with
 the reason, when FMPy or a C compiler is missing.
 """
@@ -20,13 +20,13 @@ import numpy as np
 import pytest
 
 from symcushion import build_model, initial_state, load_scene, simulate
-from symcushion.cbuild import find_compiler
-from symcushion.characteristics import Crushable, Linear
-from symcushion.fmu import build_fmu, held_input_step
-from symcushion.fmu_variables import fmu_variables, model_description, variables_markdown
-from symcushion.layout import output_layout, state_layout
-from symcushion.scene import Body, Scene, symmetric_legs
-from symcushion.obstacles import Plane
+from symcushion.compiled.cbuild import find_compiler
+from symcushion.legs.characteristics import Crushable, Linear
+from symcushion.compiled.fmu import build_fmu, held_input_step
+from symcushion.compiled.fmu_variables import fmu_variables, model_description, variables_markdown
+from symcushion.scheme.layout import output_layout, state_layout
+from symcushion.model.scene import Body, Scene, symmetric_legs
+from symcushion.model.obstacles import Plane
 
 fmpy = pytest.importorskip("fmpy", reason="FMPy is not installed: pip install "
                            "'symcushion[fmu]' to build and import FMUs")

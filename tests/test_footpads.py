@@ -11,16 +11,16 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from symcushion.characteristics import Linear
-from symcushion.checks import FOOTPAD_FRACTION, check_scene
-from symcushion.driver import simulate
-from symcushion.layout import output_layout, state_layout
-from symcushion.obstacles import ImplicitSurface, Plane, Sphere, Terrain
-from symcushion.scene import Body, Scene, scene_from_dict
-from symcushion.strut import HingedStrut
-from symcushion.touchdown import build_model, equilibrium_state, initial_state
-from symcushion.trajectory import contact_points
-from symcushion.tripod import InvertedTripod
+from symcushion.legs.characteristics import Linear
+from symcushion.run.checks import FOOTPAD_FRACTION, check_scene
+from symcushion.run.driver import simulate
+from symcushion.scheme.layout import output_layout, state_layout
+from symcushion.model.obstacles import ImplicitSurface, Plane, Sphere, Terrain
+from symcushion.model.scene import Body, Scene, scene_from_dict
+from symcushion.legs.strut import HingedStrut
+from symcushion.scheme.touchdown import build_model, equilibrium_state, initial_state
+from symcushion.run.trajectory import contact_points
+from symcushion.legs.tripod import InvertedTripod
 
 from conftest import make_sled
 from test_tripod import APOLLO, azimuth

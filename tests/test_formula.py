@@ -6,7 +6,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from symcushion.formula import MAX_CONSTANT, MAX_EXPONENT, FormulaError, parse_formula
+from symcushion.model.formula import MAX_CONSTANT, MAX_EXPONENT, FormulaError, parse_formula
 
 POINT = np.array([0.3, -0.7, 1.9])
 

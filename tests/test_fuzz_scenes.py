@@ -30,9 +30,10 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from symcushion.checks import check_scene
-from symcushion.scene import scene_from_dict
-from symcushion.simulate import build_model, simulate
+from symcushion.run.checks import check_scene
+from symcushion.model.scene import scene_from_dict
+from symcushion.scheme.touchdown import build_model
+from symcushion.run.driver import simulate
 
 if sys.version_info >= (3, 11):
     import tomllib

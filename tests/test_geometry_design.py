@@ -12,16 +12,16 @@ import math
 import numpy as np
 import pytest
 
-from symcushion.codegen import find_compiler
+from symcushion.compiled.codegen import find_compiler
 from symcushion.envelope.cases import initial_states
-from symcushion.obstacles import closest_obstacle
-from symcushion.optimise import study_from_dict
-from symcushion.optimise.study import _place
-from symcushion.robust import EnvelopeDesign
-from symcushion.robust.study import robust_study_from_dict
-from symcushion.scene import read_toml
-from symcushion.touchdown import build_model, initial_state
-from symcushion.layout import state_layout
+from symcushion.model.obstacles import closest_obstacle
+from symcushion.design.optimise import study_from_dict
+from symcushion.design.optimise.study import _place
+from symcushion.design.robust import EnvelopeDesign
+from symcushion.design.robust.study import robust_study_from_dict
+from symcushion.model.scene import read_toml
+from symcushion.scheme.touchdown import build_model, initial_state
+from symcushion.scheme.layout import state_layout
 
 from test_robust import TINY
 
@@ -281,7 +281,7 @@ def test_compiled_rollouts_with_a_geometry_variable_equal_the_vm(tmp_path):
     """The compiled design path (``compile = true``) takes the geometry's x0 and p
     expressions with the rollouts: f, g and the Jacobian equal the VM's."""
     import casadi as ca
-    from symcushion.compiled_nlp import COMPILE_FLAGS
+    from symcushion.design.compiled_nlp import COMPILE_FLAGS
 
     def absorber():
         data = read_toml("studies/absorber_1d.toml", "study")

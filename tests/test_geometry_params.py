@@ -15,10 +15,10 @@ import pytest
 
 import symcushion as sc
 from symcushion import Linear
-from symcushion.layout import state_layout
-from symcushion.obstacles import Plane
-from symcushion.scene import Body, Scene, symmetric_legs
-from symcushion.touchdown import build_model, initial_state
+from symcushion.scheme.layout import state_layout
+from symcushion.model.obstacles import Plane
+from symcushion.model.scene import Body, Scene, symmetric_legs
+from symcushion.scheme.touchdown import build_model, initial_state
 
 #: Steps of the compared rollouts: touchdown, stick and slip on the slope.
 STEPS = 120

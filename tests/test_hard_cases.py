@@ -5,18 +5,20 @@ implicit method passes every check of the case, and (2) that the run agrees
 with the committed table ``figures/hard_cases.md``: where the table says a
 method passes, it passes here; where it says FAIL, it fails here on the same
 checks. The tolerances are the study's (named constants in
-``symcushion/studies/hard_cases.py``, justified there and in docs/hard-cases.md).
+``symcushion/studies/hard_cases/checks.py``, justified there and in docs/hard-cases.md).
 """
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from symcushion.characteristics import Linear
-from symcushion.obstacles import Plane
-from symcushion.scene import Body, Scene
-from symcushion.simulate import build_model, initial_state, simulate, stable_dt
-from symcushion.strut import HingedStrut
+from symcushion.legs.characteristics import Linear
+from symcushion.model.obstacles import Plane
+from symcushion.model.scene import Body, Scene
+from symcushion.scheme.touchdown import build_model, initial_state
+from symcushion.run.driver import simulate
+from symcushion.scheme.stability import stable_dt
+from symcushion.legs.strut import HingedStrut
 from symcushion.studies import hard_cases as hc
 
 ROOT = Path(__file__).resolve().parents[1]

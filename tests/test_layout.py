@@ -1,12 +1,12 @@
-"""Tests of symcushion.layout: field tables, pack/unpack, CSV names, quaternions."""
+"""Tests of symcushion.scheme.layout: field tables, pack/unpack, CSV names, quaternions."""
 import casadi as ca
 import numpy as np
 import pytest
 
-from symcushion import layout
-from symcushion.layout import output_columns, output_layout, state_columns, state_layout
-from symcushion.quaternion import (quat_exp, quat_from_axis_angle_np, quat_mul, quat_mul_np,
-                                   quat_to_rot, quat_to_rot_np, tilt, tilt_np)
+from symcushion.scheme import layout
+from symcushion.scheme.layout import output_columns, output_layout, state_columns, state_layout
+from symcushion.scheme.quaternion import (quat_exp, quat_from_axis_angle_np, quat_mul,
+    quat_mul_np, quat_to_rot, quat_to_rot_np, tilt, tilt_np)
 
 ROUND_OFF = 1e-14      # a few ulps of O(1) quantities
 

@@ -90,15 +90,15 @@ def test_direct_switches_need_the_lock_and_the_located_switch_together(lock):
     assert orders["both"] >= 1.8
 
 
-# -- the memory law as the band stiffness grows (symcushion.absorber) -------------------
+# -- the memory law as the band stiffness grows (symcushion.legs.absorber) -------------------
 def _memory_run(lock, v0, k_e, h):
     """Velocity Verlet on the control's model with each leg's axial force from the
     package's memory law (A1)-(A2) of the control's curves, elastic stiffness ``k_e``:
     the state (q, v) at T."""
     import casadi as ca
 
-    from symcushion import absorber
-    from symcushion.characteristics import Crushable, PiecewiseLinear
+    from symcushion.legs import absorber
+    from symcushion.legs.characteristics import Crushable, PiecewiseLinear
     curve = Crushable(lock.K, lock.F_C, lock.K_P, elastic_stiffness=k_e,
                       unloading=PiecewiseLinear([-1.0, -lock.C_U, 0.0], [-lock.S_U, -lock.S_U, 0.0]))
     x, s = ca.SX.sym("x", 2), ca.SX.sym("s", 2)      # x = −c: the package's deflection

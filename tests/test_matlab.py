@@ -1,4 +1,4 @@
-"""MAT files for MATLAB (symcushion.matlab): trajectory.mat beside every run's CSV, cases.mat
+"""MAT files for MATLAB (symcushion.run.matlab): trajectory.mat beside every run's CSV, cases.mat
 beside an envelope's cases.csv; every column equal to the CSV's to the last bit, the
 metadata struct equal to its JSON, names valid in MATLAB, atomic writes."""
 import csv
@@ -10,9 +10,9 @@ import pytest
 import scipy.io
 
 from symcushion import envelope as ev
-from symcushion.matlab import (MATLAB_KEYWORDS, NAME_LENGTH_MAX, matlab_name, matlab_names,
-                               to_matlab, write_table_mat)
-from symcushion.results import MAT_NAME, MODE_CODES, ResultWriter, column_unit, result_dir
+from symcushion.run.matlab import (MATLAB_KEYWORDS, NAME_LENGTH_MAX, matlab_name, matlab_names,
+    to_matlab, write_table_mat)
+from symcushion.run.results import MAT_NAME, MODE_CODES, ResultWriter, column_unit, result_dir
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -173,7 +173,7 @@ def test_cases_mat_holds_every_column_of_cases_csv(tmp_path):
 def test_columns_are_transposed_block_by_block(tutorial_result, tmp_path, monkeypatch):
     """The MAT file is written from a column-major copy made a block of rows at a time;
     blocks of 8 rows (the last one short) give the same columns as the NPZ."""
-    from symcushion import results
+    from symcushion.run import results
 
     with np.load(tutorial_result / "trajectory.npz") as z:
         columns, data = [str(c) for c in z["columns"]], z["data"]

@@ -3,10 +3,10 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from symcushion.layout import output_layout, state_layout
-from symcushion.quaternion import quat_from_axis_angle_np
-from symcushion.measures import MEASURES, measures_function, support_edges
-from symcushion.simulate import build_model, initial_state
+from symcushion.scheme.layout import output_layout, state_layout
+from symcushion.scheme.quaternion import quat_from_axis_angle_np
+from symcushion.scheme.measures import MEASURES, measures_function, support_edges
+from symcushion.scheme.touchdown import build_model, initial_state
 
 #: Agreement of quantities computed two ways in double precision from O(1..10) inputs.
 ROUND_OFF = 1e-12

@@ -5,12 +5,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from symcushion.characteristics import Linear, PiecewiseLinear
+from symcushion.legs.characteristics import Linear, PiecewiseLinear
 from symcushion.cli import main
-from symcushion.obstacles import Plane
-from symcushion.optimise import (DesignProblem, DesignVariable, Limits, Scenario, load_study,
-                                 study_from_dict)
-from symcushion.scene import Body, Scene, symmetric_legs
+from symcushion.model.obstacles import Plane
+from symcushion.design.optimise import (DesignProblem, DesignVariable, Limits, Scenario,
+    load_study, study_from_dict)
+from symcushion.model.scene import Body, Scene, symmetric_legs
 
 ROOT = Path(__file__).resolve().parents[1]
 ABSORBER = ROOT / "studies" / "absorber_1d.toml"

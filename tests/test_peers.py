@@ -5,13 +5,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from symcushion.characteristics import Linear, PiecewiseLinear
-from symcushion.obstacles import ImplicitSurface, Plane
-from symcushion.scene import Body, Scene, load_scene
-from symcushion.simulate import initial_state, simulate
-from symcushion.strut import HingedStrut
+from symcushion.legs.characteristics import Linear, PiecewiseLinear
+from symcushion.model.obstacles import ImplicitSurface, Plane
+from symcushion.model.scene import Body, Scene, load_scene
+from symcushion.scheme.touchdown import initial_state
+from symcushion.run.driver import simulate
+from symcushion.legs.strut import HingedStrut
 from symcushion.peers import (PeerRun, mujoco_available, mujoco_simulate, penalty_simulate,
-                              rebound_speed, trajectory_deflection)
+    rebound_speed, trajectory_deflection)
 
 ROOT = Path(__file__).resolve().parents[1]
 SLOPE = np.deg2rad(10.0)

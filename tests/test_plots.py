@@ -10,12 +10,12 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 from PIL import Image  # noqa: E402
 
-from symcushion.animate import animate, draw_frame, frame_indices  # noqa: E402
-from symcushion.characteristics import Crushable, Linear, PiecewiseLinear  # noqa: E402
-from symcushion.placement import PLACEMENT_TOL, feet_clearance, place_on_obstacle  # noqa: E402
-from symcushion.plots import summary_figure  # noqa: E402
-from symcushion.scene import load_scene  # noqa: E402
-from symcushion.simulate import simulate  # noqa: E402
+from symcushion.viz.animate import animate, draw_frame, frame_indices  # noqa: E402
+from symcushion.legs.characteristics import Crushable, Linear, PiecewiseLinear  # noqa: E402
+from symcushion.model.placement import PLACEMENT_TOL, feet_clearance, place_on_obstacle  # noqa: E402
+from symcushion.viz.plots import summary_figure  # noqa: E402
+from symcushion.model.scene import load_scene  # noqa: E402
+from symcushion.run.driver import simulate  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 

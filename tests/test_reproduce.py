@@ -11,8 +11,8 @@ import pytest
 
 from symcushion.cli import main
 from symcushion.reproduce import ALIGN_BOUND, REBOUND_BOUND, measure_claims
-from symcushion.scene import load_scene
-from symcushion.simulate import simulate
+from symcushion.model.scene import load_scene
+from symcushion.run.driver import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 STUDIES = ROOT / "studies"

@@ -7,15 +7,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from symcushion import driver
-from symcushion.characteristics import Linear
-from symcushion.driver import RunWarning, Trajectory, save, simulate
-from symcushion.obstacles import Plane
-from symcushion.results import (JSON_NAME, UNITS, ResultWriter, check_out_dir, column_unit,
-                                result_dir, trajectory_columns)
-from symcushion.scene import Body, Scene, load_scene
-from symcushion.simulate import BODY_OUT, BODY_STATE, LEG_OUT, LEG_STATE, build_model
-from symcushion.strut import HingedStrut
+from symcushion.run import driver
+from symcushion.legs.characteristics import Linear
+from symcushion.run.driver import RunWarning, Trajectory, save, simulate
+from symcushion.model.obstacles import Plane
+from symcushion.run.results import (JSON_NAME, UNITS, ResultWriter, check_out_dir, column_unit,
+    result_dir, trajectory_columns)
+from symcushion.model.scene import Body, Scene, load_scene
+from symcushion.scheme.layout import BODY_OUT, BODY_STATE, LEG_OUT, LEG_STATE
+from symcushion.scheme.touchdown import build_model
+from symcushion.legs.strut import HingedStrut
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -15,10 +15,10 @@ import numpy as np
 import pytest
 
 from symcushion import envelope as ev
-from symcushion.codegen import find_compiler
-from symcushion.robust import CHECKS, EnvelopeDesign, saturate
-from symcushion.robust.select import left_out, select_scenarios, worst_margin
-from symcushion.robust.study import robust_study_from_dict, run_robust_study
+from symcushion.compiled.codegen import find_compiler
+from symcushion.design.robust import CHECKS, EnvelopeDesign, saturate
+from symcushion.design.robust.select import left_out, select_scenarios, worst_margin
+from symcushion.design.robust.study import robust_study_from_dict, run_robust_study
 
 needs_cc = pytest.mark.skipif(find_compiler() is None, reason="needs a C compiler")
 
@@ -68,8 +68,8 @@ def test_an_element_off_its_bounds_keeps_its_set_exactly():
     """On the memory law the set moves only on a bound (A2), and off the bounds it is
     kept bit for bit: the step's crush-onset kick asks whether it moved, and a
     round-off move made the design's rollouts differ from their AD derivative."""
-    from symcushion import absorber
-    from symcushion.characteristics import PiecewiseLinear as Piecewise
+    from symcushion.legs import absorber
+    from symcushion.legs.characteristics import PiecewiseLinear as Piecewise
     curve = Piecewise([-0.3, -0.02, 0.0], [-1000.0, -1000.0, 0.0], damping=10.0,
                       unloading=Piecewise([-0.3, -0.01, 0.0], [-300.0, -300.0, 0.0]))
     s = -0.0041853271
@@ -171,10 +171,10 @@ def test_margins_bound_the_envelope_extrema_from_above(run):
 def test_the_at_rest_margin_is_the_mean_motion_over_the_window(tmp_path):
     """The 'moving' ratio is the mean of (|v| + |ω|·reach)/rest_speed over the last
     REST_WINDOW of the horizon: checked against the rollout's states on the VM."""
-    from symcushion.layout import state_layout
-    from symcushion.robust.evaluate import build_margins
-    from symcushion.robust.margins import REST_WINDOW
-    from symcushion.touchdown import build_model
+    from symcushion.scheme.layout import state_layout
+    from symcushion.design.robust.evaluate import build_margins
+    from symcushion.design.robust.margins import REST_WINDOW
+    from symcushion.scheme.touchdown import build_model
     import casadi as ca
 
     data = copy.deepcopy(TINY)
@@ -287,7 +287,7 @@ def test_dask_evaluation_equals_threads(run):
 
 
 def test_the_run_says_which_failures_the_scenarios_stand_for():
-    from symcushion.robust.study import _representation
+    from symcushion.design.robust.study import _representation
     cls = np.array(["stable", "tip_over", "tip_over", "rebound", "rebound", "no_touchdown"])
     columns = {"class": cls, "margin_tip_over": np.array([0.2, -5.0, -0.1, 0.5, 0.5, 0.0]),
                "margin_rebound": np.array([0.3, 0.5, 0.5, -0.2, -2.5, 0.0])}
@@ -301,7 +301,7 @@ def test_the_run_says_which_failures_the_scenarios_stand_for():
 
 
 def test_tip_energy_samples_fade_past_the_tilt_limit():
-    from symcushion.robust.margins import TIP_FADED, tip_energy
+    from symcushion.design.robust.margins import TIP_FADED, tip_energy
     limits = {"tip_energy": 0.1, "tip_over": np.radians(35.0)}
     surplus = ca.DM([0.05, -0.2])
     upright = np.asarray(ca.evalf(tip_energy(surplus, 0.0, limits))).ravel()
@@ -336,7 +336,7 @@ def test_the_outer_loop_keeps_the_round_with_the_best_held_out_p_stable(tmp_path
 
 
 def test_with_the_energy_check_the_tilt_only_gates_it():
-    from symcushion.robust.risk import design_checks
+    from symcushion.design.robust.risk import design_checks
     limits = dict(tip_over=0.6, tip_energy=0.1, stroke=0.25, beta=None, gamma=None,
                   deceleration=80.0, rebound=0.5, moving=0.05)
     assert design_checks(limits) == ["tip_energy", "stroke", "deceleration", "rebound",
@@ -346,7 +346,7 @@ def test_with_the_energy_check_the_tilt_only_gates_it():
 
 def test_a_tipped_lander_fades_every_check_but_the_energy_one():
     """Past the tilt limit the samples go to TIP_FADED; upright they are untouched."""
-    from symcushion.robust.margins import TIP_FADED, upright
+    from symcushion.design.robust.margins import TIP_FADED, upright
     tilt = np.radians(35.0)
     assert float(upright(0.0, tilt)) == pytest.approx(1.0, abs=1e-12)
     assert float(upright(1 - np.cos(tilt), tilt)) == pytest.approx(0.5, abs=1e-12)

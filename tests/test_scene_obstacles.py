@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 
 from symcushion.cli import main
-from symcushion.obstacles import ImplicitSurface, Plane, Sphere, Terrain, closest_obstacle
-from symcushion.scene import load_scene, scene_from_dict
-from symcushion.simulate import equilibrium_state, simulate
+from symcushion.model.obstacles import ImplicitSurface, Plane, Sphere, Terrain, closest_obstacle
+from symcushion.model.scene import load_scene, scene_from_dict
+from symcushion.scheme.touchdown import equilibrium_state
+from symcushion.run.driver import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -117,7 +118,7 @@ def test_simulate_cli_writes_files(tmp_path):
     text = (ROOT / "studies" / "fig3.toml").read_text().replace("duration = 0.6", "duration = 0.05")
     scene_file.write_text(text)
     assert main(["simulate", str(scene_file), "--out", str(tmp_path), "--method", "implicit"]) == 0
-    # the result directory OUT/<scene name> (symcushion.results)
+    # the result directory OUT/<scene name> (symcushion.run.results)
     result = tmp_path / "fig3"
     assert (result / "trajectory.csv").is_file() and (result / "trajectory.npz").is_file()
     assert main(["simulate", str(tmp_path / "missing.toml")]) == 2
@@ -169,8 +170,8 @@ def test_three_d_friction_direction_implicit_exact_paper_lags(sled_scene):
 def _shifted_dome(dt):
     """Fig. 3 with its dome 4 cm off the axis, the feet placed on it, μ = 0: the feet
     slide off-centre over the dome."""
-    from symcushion.placement import place_on_obstacle
-    from symcushion.scene import read_toml, scene_from_dict
+    from symcushion.model.placement import place_on_obstacle
+    from symcushion.model.scene import read_toml, scene_from_dict
     data = read_toml(ROOT / "studies" / "fig3.toml")
     data["obstacle"][0]["center"] = [0.04, 0.0, 0.0]
     data["scene"].update(duration=0.3, dt=dt, method="implicit")   # exact on its plane
@@ -181,9 +182,9 @@ def test_a_frictionless_foot_on_a_curved_obstacle_is_pushed_along_its_final_norm
     """The force found on the tangent plane at the predicted end point is turned onto the
     plane at the foot's final point: normal there to round-off (a force left along the
     predicted normal works on the foot's slide and loses energy at first order)."""
-    from symcushion.layout import output_layout, state_layout
-    from symcushion.obstacles import closest_obstacle
-    from symcushion.touchdown import build_model, initial_state
+    from symcushion.scheme.layout import output_layout, state_layout
+    from symcushion.model.obstacles import closest_obstacle
+    from symcushion.scheme.touchdown import build_model, initial_state
     scene = _shifted_dome(1e-3)
     model = build_model(scene)
     X, Y = (np.asarray(a) for a in model.rollout(scene.steps)(initial_state(scene),

@@ -4,11 +4,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from symcushion.characteristics import Linear
-from symcushion.obstacles import Plane, Sphere
-from symcushion.scene import Body, Scene, load_scene
-from symcushion.simulate import build_model, equilibrium_state, initial_state, simulate
-from symcushion.strut import HingedStrut
+from symcushion.legs.characteristics import Linear
+from symcushion.model.obstacles import Plane, Sphere
+from symcushion.model.scene import Body, Scene, load_scene
+from symcushion.scheme.touchdown import build_model, equilibrium_state, initial_state
+from symcushion.run.driver import simulate
+from symcushion.legs.strut import HingedStrut
 
 ROOT = Path(__file__).resolve().parents[1]
 G = 9.81
@@ -244,13 +245,13 @@ def test_on_one_plane_the_end_point_pass_changes_only_round_off(sled_scene):
 
 
 def test_trajectory_files(tmp_path):
-    from symcushion.simulate import save
+    from symcushion.run.driver import save
 
     scene = drop_scene(1e-3, duration=0.05)
     traj = simulate(scene)
     files = save(traj, tmp_path, "drop")
     header = files["csv"].read_text().splitlines()[0].split(",")
-    # self-describing names (symcushion.results): time first, leg 0's vertical force in N
+    # self-describing names (symcushion.run.results): time first, leg 0's vertical force in N
     assert header[0] == "time_s" and "leg0_force_z_N" in header
     data = np.load(files["npz"])
     columns = list(data["columns"])

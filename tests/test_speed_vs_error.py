@@ -18,8 +18,9 @@ import numpy as np
 import pytest
 
 from symcushion.reproduce import measure_claims
-from symcushion.scene import load_scene
-from symcushion.simulate import build_model, simulate
+from symcushion.model.scene import load_scene
+from symcushion.scheme.touchdown import build_model
+from symcushion.run.driver import simulate
 from symcushion.studies import speed_vs_error as sve
 
 ROOT = Path(__file__).resolve().parent.parent

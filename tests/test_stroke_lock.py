@@ -1,4 +1,4 @@
-"""The absorbers' stroke lock (``events = "lock"``, ``symcushion.stroke_lock``).
+"""The absorbers' stroke lock (``events = "lock"``, ``symcushion.scheme.stroke_lock``).
 
 A crushable leg whose stroke turns with its load between the loading and the
 unloading curve holds its stroke (the Filippov motion of P(δ_S, sign δ_S′));
@@ -20,13 +20,14 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from symcushion.layout import state_layout
-from symcushion.quaternion import quat_to_rot_np
-from symcushion.scene import load_scene, read_toml, scene_from_dict
-from symcushion.simulate import build_model, initial_state, simulate
-from symcushion import touchdown_events as touchdown
-from symcushion.stroke_lock import (LOCKED, UNLOADING, axial_branches, newton_masked, skip_unless,
-                                     solve_masked)
+from symcushion.scheme.layout import state_layout
+from symcushion.scheme.quaternion import quat_to_rot_np
+from symcushion.model.scene import load_scene, read_toml, scene_from_dict
+from symcushion.scheme.touchdown import build_model, initial_state
+from symcushion.run.driver import simulate
+from symcushion.scheme import touchdown_events as touchdown
+from symcushion.scheme.stroke_lock import (LOCKED, UNLOADING, axial_branches, newton_masked,
+    skip_unless, solve_masked)
 
 from research import event_order   # not installed: tests/conftest.py puts it on sys.path
 

@@ -1,4 +1,4 @@
-"""Tests of ``symcushion.strut``: the force law (2.1) and its stiffness D_p.
+"""Tests of ``symcushion.legs.strut``: the force law (2.1) and its stiffness D_p.
 
 What is checked, and against what:
 
@@ -25,9 +25,9 @@ import numpy as np
 import pytest
 
 from symcushion import Crushable, HingedStrut, Linear, PiecewiseLinear
-from symcushion.curve_base import RATE_WIDTH
-from symcushion.strut import RIGID_AXIAL_RATIO
-from symcushion.strut_geometry import SINGULAR_ANGLE
+from symcushion.legs.curve_base import RATE_WIDTH
+from symcushion.legs.strut import RIGID_AXIAL_RATIO
+from symcushion.legs.strut_geometry import SINGULAR_ANGLE
 
 EPS = np.finfo(float).eps
 

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from symcushion import HingedStrut, Linear, PiecewiseLinear
-from symcushion.scene import SceneError, scene_from_dict, symmetric_legs
+from symcushion.model.scene import SceneError, scene_from_dict, symmetric_legs
 
 #: The leg of the loop checks: a lander leg (20° out, polar axis 45° from it)
 #: with elastic curves.

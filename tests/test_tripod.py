@@ -1,4 +1,4 @@
-"""Tests of ``symcushion.tripod``: the inverted-tripod leg's force P = Jᵀf and D_p.
+"""Tests of ``symcushion.legs.tripod``: the inverted-tripod leg's force P = Jᵀf and D_p.
 
 What is checked, and against what:
 
@@ -23,8 +23,8 @@ import pytest
 from scipy.optimize import brentq
 
 from symcushion import HingedStrut
-from symcushion.characteristics import Crushable, GasSpring, Linear, TwoSided
-from symcushion.tripod import SINGULAR_ANGLE, InvertedTripod
+from symcushion.legs.characteristics import Crushable, GasSpring, Linear, TwoSided
+from symcushion.legs.tripod import SINGULAR_ANGLE, InvertedTripod
 
 #: AD stiffness vs central differences, relative to |D_p| (Frobenius).
 RTOL_FD = 1e-7

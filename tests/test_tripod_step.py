@@ -1,4 +1,4 @@
-"""Inverted-tripod legs in the touchdown step (symcushion.tripod through symcushion.touchdown):
+"""Inverted-tripod legs in the touchdown step (symcushion.legs.tripod through symcushion.scheme.touchdown):
 a lander at rest where the hand truss puts it, the memory law on its elements, scene files."""
 from __future__ import annotations
 
@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from symcushion.characteristics import Crushable, Linear, TwoSided
-from symcushion.layout import output_layout, state_layout
-from symcushion.obstacles import Plane
-from symcushion.scene import Body, Scene, load_scene
-from symcushion.touchdown import build_model, initial_state
-from symcushion.tripod import InvertedTripod
+from symcushion.legs.characteristics import Crushable, Linear, TwoSided
+from symcushion.scheme.layout import output_layout, state_layout
+from symcushion.model.obstacles import Plane
+from symcushion.model.scene import Body, Scene, load_scene
+from symcushion.scheme.touchdown import build_model, initial_state
+from symcushion.legs.tripod import InvertedTripod
 
 from conftest import STUDIES
 from test_tripod import APOLLO, azimuth, curve_forces, ref_strokes, truss_foot_force

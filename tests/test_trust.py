@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from symcushion import cli
-from symcushion.results import RUN_FILES, OutputExists, ResultWriter, claim_output, remove_stale
+from symcushion.run.results import (RUN_FILES, OutputExists, ResultWriter, claim_output,
+    remove_stale)
 
 ROOT = Path(__file__).resolve().parents[1]
 FIG3 = ROOT / "studies" / "fig3.toml"
@@ -252,13 +253,13 @@ def test_an_interrupted_envelope_resumes_to_the_same_cases(tmp_path, capsys):
 # angles
 # ---------------------------------------------------------------------------
 def _slope_scene():
-    from symcushion.scene import read_toml
+    from symcushion.model.scene import read_toml
 
     return read_toml(ROOT / "studies" / "lander_slope.toml")
 
 
 def _load(data, source="lander.toml"):
-    from symcushion.scene import scene_from_dict
+    from symcushion.model.scene import scene_from_dict
 
     return scene_from_dict(data, source)
 
@@ -280,7 +281,7 @@ def test_angle_fields_take_degrees_with_deg_bit_for_bit():
                                                ("obstacle", "angle", -2),
                                                ("legs", "azimuth0", 45)))
 def test_implausible_radians_name_the_field_value_and_the_deg_field(table, key, value):
-    from symcushion.scene import SceneError
+    from symcushion.model.scene import SceneError
 
     data = _slope_scene()
     (data[table][0] if table == "obstacle" else data[table])[key] = value
@@ -292,7 +293,7 @@ def test_implausible_radians_name_the_field_value_and_the_deg_field(table, key, 
 
 
 def test_an_angle_in_both_units_is_an_error_reported_with_the_others():
-    from symcushion.scene import SceneError
+    from symcushion.model.scene import SceneError
 
     data = _slope_scene()
     data["obstacle"][0]["angle_deg"] = 10
@@ -305,7 +306,7 @@ def test_an_angle_in_both_units_is_an_error_reported_with_the_others():
 
 def test_study_limits_take_either_unit_and_refuse_degrees_as_radians():
     import symcushion.envelope as ev
-    from symcushion.scene import read_toml
+    from symcushion.model.scene import read_toml
 
     raw = read_toml(ROOT / "studies" / "envelope_lander.toml")
     limits = raw["limits"]
@@ -321,8 +322,8 @@ def test_study_limits_take_either_unit_and_refuse_degrees_as_radians():
 
 
 def test_the_design_tilt_limit_takes_degrees_too():
-    from symcushion.optimise.study import study_from_dict
-    from symcushion.scene import read_toml
+    from symcushion.design.optimise.study import study_from_dict
+    from symcushion.model.scene import read_toml
 
     raw = read_toml(ROOT / "studies" / "absorber_1d.toml")
     raw.setdefault("limits", {})["tilt_deg"] = 30.0
@@ -380,10 +381,10 @@ def test_an_unstable_step_suggests_the_cli_options_and_stability_runs(tmp_path, 
 
 
 def test_the_energy_growth_message_names_one_time_and_the_cli_options():
-    from symcushion.layout import state_layout
-    from symcushion.monitor import RunMonitor
-    from symcushion.scene import load_scene
-    from symcushion.touchdown import initial_state
+    from symcushion.scheme.layout import state_layout
+    from symcushion.run.monitor import RunMonitor
+    from symcushion.model.scene import load_scene
+    from symcushion.scheme.touchdown import initial_state
 
     scene = load_scene(FIG3)
     x = initial_state(scene)

@@ -10,8 +10,8 @@ import pytest
 matplotlib.use("Agg")
 
 from symcushion.cli import main as cli  # noqa: E402
-from symcushion.placement import PLACEMENT_TOL, feet_clearance, place_on_obstacle  # noqa: E402
-from symcushion.scene import load_scene  # noqa: E402
+from symcushion.model.placement import PLACEMENT_TOL, feet_clearance, place_on_obstacle  # noqa: E402
+from symcushion.model.scene import load_scene  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 TUTORIAL = ROOT / "docs" / "tutorial.md"

@@ -10,13 +10,13 @@ import numpy as np
 import pytest
 
 from symcushion.cli import main as cli
-from symcushion.obstacles import Plane, Sphere, Terrain
+from symcushion.model.obstacles import Plane, Sphere, Terrain
 
 plotly = pytest.importorskip("plotly", reason="the viewer needs the optional extra "
                                               "symcushion[viewer] (plotly)")
 
-from symcushion import viewer  # noqa: E402
-from symcushion.chromium import browser  # noqa: E402
+from symcushion.viz import viewer  # noqa: E402
+from symcushion.viz.chromium import browser  # noqa: E402
 
 #: Screenshot window of the browser test (px): smaller than the default, quicker to draw.
 TEST_SIZE = (1100, 700)
@@ -196,7 +196,7 @@ def test_screenshots_in_headless_chromium_step_the_slider(page, run, tmp_path):
 @pytest.mark.skipif(browser() is None,
                     reason="no Chromium on the PATH (apt-get install chromium)")
 def test_chromium_runs_javascript_and_reports_failures(tmp_path):
-    from symcushion.chromium import Chromium
+    from symcushion.viz.chromium import Chromium
 
     page = tmp_path / "page.html"
     page.write_text("<html><body><p id='p'>hello</p></body></html>")

@@ -21,10 +21,10 @@ and runs a second scene with a hop, ``studies/lander_hop.toml``, whose
 final state at t = 0.6 s is compared with the reference. Every case runs
 with each slip rule of the implicit step (:data:`SLIP_RULES`: backward
 Euler, the default, and the second-order midpoint rule of
-``symcushion.contact_midpoint``), labelled "variant (midpoint)" for the
+``symcushion.contact.midpoint``), labelled "variant (midpoint)" for the
 second. The variants that keep the absorber's unloading branch (and
 ``elastic``, as a check that the option then changes nothing) run once more
-with the midpoint rule and ``events = "branch"`` (``symcushion.branch_switch``:
+with the midpoint rule and ``events = "branch"`` (``symcushion.scheme.branch_switch``:
 the kick weighted at the located loading/unloading switch), labelled
 "variant (midpoint, branch)"; :func:`reversals` counts each leg's stroke
 reversals in contact, the branch switches, at two Δt.

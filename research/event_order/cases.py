@@ -9,7 +9,7 @@ from __future__ import annotations
 import copy
 from pathlib import Path
 
-from symcushion.scene import read_toml, scene_from_dict
+from symcushion.model.scene import read_toml, scene_from_dict
 
 
 #: The repository root: this file is research/event_order/cases.py.

@@ -8,10 +8,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from symcushion.codegen import compiled_model
-from symcushion.layout import state_layout
-from symcushion.scene import read_toml, scene_from_dict
-from symcushion.simulate import build_model, equilibrium_state, simulate
+from symcushion.compiled.codegen import compiled_model
+from symcushion.scheme.layout import state_layout
+from symcushion.model.scene import read_toml, scene_from_dict
+from symcushion.scheme.touchdown import build_model, equilibrium_state
+from symcushion.run.driver import simulate
 from symcushion.studies import speed_vs_error as sve
 
 from .cases import BUILD, CHUNK, REVERSAL_DTS, SLIP_RULES, STICK_MU, STUDIES, case_label, scenes

@@ -90,7 +90,7 @@ def plot_window(result, fits, times, path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from symcushion.output_files import replacing
+    from symcushion.run.output_files import replacing
 
     schemes = list(dict.fromkeys(r["scheme"] for r in result["rows"]))
     order = {(f["scheme"], f["until"]): f["own"][0] for f in fits}
@@ -146,7 +146,7 @@ def plot_roundoff(rows, need, path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from symcushion.output_files import replacing
+    from symcushion.run.output_files import replacing
 
     fig, ax = plt.subplots(figsize=(9.5, 6))
     styles = ("-", "--", ":")

@@ -13,7 +13,7 @@ write files (``main`` writes its section).
 
 Why: a lock for a sliding foot has to hold the quantity this limit holds.
 (2.1) selects the branch by sign(V·e_S), the stuck-foot chord of the strut
-(``symcushion.strut``), so its closure holds that rate, and a sliding
+(``symcushion.legs.strut``), so its closure holds that rate, and a sliding
 foot's stroke moves with the foot.
 """
 from __future__ import annotations

@@ -32,9 +32,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from symcushion.codegen import compiled_model
-from symcushion.scene import read_toml, scene_from_dict
-from symcushion.simulate import simulate
+from symcushion.compiled.codegen import compiled_model
+from symcushion.model.scene import read_toml, scene_from_dict
+from symcushion.run.driver import simulate
 
 from .cases import BUILD, CHUNK, STUDIES, _variant_data, case_label, scenes
 from .runs import at_step, reversal_steps

@@ -9,7 +9,7 @@ import argparse
 import importlib
 import time
 
-from symcushion import report
+from symcushion.run import report
 
 from .cases import FIGURES, RESULTS, scenes
 from .controls import controls, controls_text, cost_check, cost_text, switch_case

@@ -19,8 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from symcushion.codegen import compiled_model
-from symcushion.simulate import simulate
+from symcushion.compiled.codegen import compiled_model
+from symcushion.run.driver import simulate
 
 from .cases import BUILD, CHUNK
 from .limits import regularized_scene

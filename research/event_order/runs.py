@@ -12,8 +12,8 @@ import time
 
 import numpy as np
 
-from symcushion.codegen import compiled_model
-from symcushion.simulate import simulate
+from symcushion.compiled.codegen import compiled_model
+from symcushion.run.driver import simulate
 from symcushion.studies import speed_vs_error as sve
 from symcushion.studies.speed_vs_error.csv_io import csv_cell
 

@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from symcushion.driver import MAX_EVENTS
+from symcushion.run.driver import MAX_EVENTS
 from symcushion.studies.speed_vs_error import convergence_order
 
 from .cases import DT_GRID, slope_cases

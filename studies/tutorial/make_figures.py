@@ -23,11 +23,11 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from symcushion.animate import draw_frame  # noqa: E402
-from symcushion.characteristics import PiecewiseLinear  # noqa: E402
+from symcushion.viz.animate import draw_frame  # noqa: E402
+from symcushion.legs.characteristics import PiecewiseLinear  # noqa: E402
 from symcushion.cli import main as cli  # noqa: E402
-from symcushion.driver import Trajectory  # noqa: E402
-from symcushion.scene import load_scene, read_toml  # noqa: E402
+from symcushion.run.driver import Trajectory  # noqa: E402
+from symcushion.model.scene import load_scene, read_toml  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]

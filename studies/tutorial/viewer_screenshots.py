@@ -2,7 +2,7 @@
 
 Simulates the tutorial lander (``symcushion simulate studies/tutorial/lander.toml``, 1 s)
 into a temporary folder, writes its page (``symcushion view``) and takes screenshots at
-:data:`TIMES` in one headless Chromium (``symcushion.viewer.screenshots``, which steps the
+:data:`TIMES` in one headless Chromium (``symcushion.viz.viewer.screenshots``, which steps the
 slider through the page's ``#t=`` hook). Needs the extra ``viewer`` (plotly) and Chromium;
 under a minute.
 
@@ -15,7 +15,7 @@ import tempfile
 from pathlib import Path
 
 from symcushion.cli import main as cli
-from symcushion.viewer import screenshots
+from symcushion.viz.viewer import screenshots
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]

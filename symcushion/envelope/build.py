@@ -1,7 +1,7 @@
 """Compiling ``envelope_case`` and running batches of cases through it.
 
 Owns the generated-and-compiled library of a scene's case Function (through
-:func:`symcushion.codegen.compile_cached`, the one build-and-cache of the
+:func:`symcushion.compiled.codegen.compile_cached`, the one build-and-cache of the
 package), loading it once per process, and the threaded ``map`` over a batch
 (and the Dask task wrapping it). It must not sample or classify.
 """
@@ -17,12 +17,12 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from ..cbuild import CFLAGS, WARNINGS
-from ..codegen import compile_cached, find_compiler
-from ..scene import scene_from_dict
-from ..scene_data import Scene
-from ..touchdown import build_model
-from .cases import envelope_function, SUMMARY
+from symcushion.compiled.cbuild import CFLAGS, WARNINGS
+from symcushion.compiled.codegen import compile_cached, find_compiler
+from symcushion.model.scene import scene_from_dict
+from symcushion.model.scene_data import Scene
+from symcushion.scheme.touchdown import build_model
+from symcushion.envelope.cases import envelope_function, SUMMARY
 
 __all__ = ["DEFAULT_CACHE", "build_envelope", "run_batch"]
 
@@ -80,7 +80,7 @@ def build_envelope(scene: Scene, cache_dir=None, *, steps: int | None = None,
     ``cache_dir/index/``), so repeated studies, tests
     and Dask workers reuse one build and different scenes (or μ) never share
     a path (a process cannot load two libraries from one path). Flags are
-    those of ``symcushion.codegen`` (:data:`~symcushion.codegen.CFLAGS`).
+    those of ``symcushion.compiled.codegen`` (:data:`~symcushion.compiled.codegen.CFLAGS`).
 
     Parameters
     ----------

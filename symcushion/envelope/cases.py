@@ -11,13 +11,13 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from ..layout import state_layout
-from ..layout_params import default_p, param_layout
-from ..quaternion import quat_from_axis_angle_np, quat_mul_np, quat_to_rot_np
-from ..measures import measures_function
-from ..scene_data import Scene
-from ..touchdown import StepModel
-from .study import EnvelopeStudy
+from symcushion.scheme.layout import state_layout
+from symcushion.scheme.layout_params import default_p, param_layout
+from symcushion.scheme.quaternion import quat_from_axis_angle_np, quat_mul_np, quat_to_rot_np
+from symcushion.scheme.measures import measures_function
+from symcushion.model.scene_data import Scene
+from symcushion.scheme.touchdown import StepModel
+from symcushion.envelope.study import EnvelopeStudy
 
 __all__ = ["SUMMARY", "DECEL_FILTER_TIME", "initial_states", "reach", "apply_design", "envelope_function", "case_params"]
 
@@ -114,7 +114,7 @@ def envelope_function(model: StepModel, steps: int | None = None) -> ca.Function
     The scene's ``touchdown_step`` rolled out by ``fold``, with the case's
     gravity (slope frame) and μ in its parameter vector ``p``. The running
     extrema of :data:`SUMMARY`, taken from ``touchdown_measures``
-    (:mod:`symcushion.measures`), are carried as extra states, and ``fold``
+    (:mod:`symcushion.scheme.measures`), are carried as extra states, and ``fold``
     keeps only the final state, so one case returns nx + 11 numbers.
 
     Parameters

@@ -8,10 +8,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..layout import state_layout
-from ..quaternion import body_axis_np
-from .cases import SUMMARY
-from .study import Limits
+from symcushion.scheme.layout import state_layout
+from symcushion.scheme.quaternion import body_axis_np
+from symcushion.envelope.cases import SUMMARY
+from symcushion.envelope.study import Limits
 
 __all__ = ["CLASSES", "classify"]
 

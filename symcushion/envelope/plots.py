@@ -10,10 +10,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..output_files import atomic_write_text, replacing
-from .build import _safe
-from .classify import CLASSES
-from .statistics import _slope_bins, CONFIDENCE, EnvelopeResult, wilson_interval
+from symcushion.run.output_files import atomic_write_text, replacing
+from symcushion.envelope.build import _safe
+from symcushion.envelope.classify import CLASSES
+from symcushion.envelope.statistics import _slope_bins, CONFIDENCE, EnvelopeResult, wilson_interval
 
 __all__ = ["LOGISTIC_RIDGE", "plot_envelope"]
 

@@ -19,16 +19,16 @@ from pathlib import Path
 
 import numpy as np
 
-from ..matlab import write_table_mat
-from ..output_files import atomic_write_text, replacing
-from ..scene_data import Scene
-from .build import _dask_batch, _safe, build_envelope, DEFAULT_CACHE, run_batch
-from .cases import apply_design, case_params, initial_states, reach, SUMMARY
-from .classify import classify
-from .plots import plot_envelope
-from .sampling import sample_conditions
-from .statistics import EnvelopeResult
-from .study import _check_counts, _DEFAULTS, EnvelopeStudy, VARIABLES
+from symcushion.run.matlab import write_table_mat
+from symcushion.run.output_files import atomic_write_text, replacing
+from symcushion.model.scene_data import Scene
+from symcushion.envelope.build import _dask_batch, _safe, build_envelope, DEFAULT_CACHE, run_batch
+from symcushion.envelope.cases import apply_design, case_params, initial_states, reach, SUMMARY
+from symcushion.envelope.classify import classify
+from symcushion.envelope.plots import plot_envelope
+from symcushion.envelope.sampling import sample_conditions
+from symcushion.envelope.statistics import EnvelopeResult
+from symcushion.envelope.study import _check_counts, _DEFAULTS, EnvelopeStudy, VARIABLES
 
 __all__ = ["PROGRESS_INTERVAL", "PROGRESS_LOG_INTERVAL", "BATCH_DIR", "run_envelope", "evaluate",
            "write_result", "output_names"]

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:  # the study module imports this one
-    from .study import EnvelopeStudy
+    from symcushion.envelope.study import EnvelopeStudy
 
 __all__ = ["MAX_SOBOL_DIMENSIONS", "SOBOL_BITS", "sobol", "sample_unit", "sample_conditions"]
 
@@ -130,7 +130,7 @@ def sample_unit(study: EnvelopeStudy) -> np.ndarray:
 
 def sample_conditions(study: EnvelopeStudy) -> dict:
     """The sampled touchdown conditions: a dict of arrays of shape (n,), by ``VARIABLES``."""
-    from .study import VARIABLES          # at call time: the study module imports this one
+    from symcushion.envelope.study import VARIABLES  # at call time: the study module imports this one
     u = sample_unit(study)
     out, col = {}, 0
     for name in VARIABLES:

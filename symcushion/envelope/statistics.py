@@ -14,8 +14,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.stats import binomtest
 
-from .classify import CLASSES
-from .study import EnvelopeStudy, VARIABLES
+from symcushion.envelope.classify import CLASSES
+from symcushion.envelope.study import EnvelopeStudy, VARIABLES
 
 __all__ = ["CONFIDENCE", "wilson_interval", "EnvelopeResult"]
 

@@ -17,10 +17,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..obstacles import Plane
-from ..scene import _Table, read_toml, scene_from_dict
-from ..scene_data import Scene
-from .sampling import MAX_SOBOL_DIMENSIONS
+from symcushion.model.obstacles import Plane
+from symcushion.model.scene import _Table, read_toml, scene_from_dict
+from symcushion.model.scene_data import Scene
+from symcushion.envelope.sampling import MAX_SOBOL_DIMENSIONS
 
 __all__ = ["VARIABLES", "MAX_SLOPE_DEG", "DEFAULT_BATCH", "DEFAULT_CLEARANCE", "DEFAULT_REST_SPEED",
            "Range", "Limits",

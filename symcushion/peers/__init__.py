@@ -1,7 +1,7 @@
 """Peer simulators of symcushion's scenes, for comparisons.
 
 Two usual alternatives to symcushion's contact step, built from the same
-:class:`~symcushion.scene.Scene` and returning the same :class:`PeerRun`:
+:class:`~symcushion.model.scene.Scene` and returning the same :class:`PeerRun`:
 
 * :func:`penalty_simulate` — light feet on stiff penalty springs with
   regularised Coulomb friction, the strut's own force law, CVODES (BDF);
@@ -10,9 +10,9 @@ Two usual alternatives to symcushion's contact step, built from the same
 
 This module only re-exports; see docs/peers.md.
 """
-from .mujoco_model import build_mjcf, mujoco_available, mujoco_simulate
-from .penalty import penalty_simulate
-from .run import PeerRun, leg_kinematics, rebound_speed, trajectory_deflection
+from symcushion.peers.mujoco_model import build_mjcf, mujoco_available, mujoco_simulate
+from symcushion.peers.penalty import penalty_simulate
+from symcushion.peers.run import PeerRun, leg_kinematics, rebound_speed, trajectory_deflection
 
 __all__ = ["PeerRun", "penalty_simulate", "mujoco_simulate", "mujoco_available", "build_mjcf",
            "rebound_speed", "trajectory_deflection", "leg_kinematics"]

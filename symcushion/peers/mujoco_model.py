@@ -37,12 +37,12 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from ..characteristics import Linear
-from ..obstacles import Plane, Sphere
-from ..scene_data import Scene
-from ..layout import state_layout
-from .run import (PeerRun, check_scene, leg_kinematics, output_times, positive, quat_to_rot_np,
-                  state_vector)
+from symcushion.legs.characteristics import Linear
+from symcushion.model.obstacles import Plane, Sphere
+from symcushion.model.scene_data import Scene
+from symcushion.scheme.layout import state_layout
+from symcushion.peers.run import (PeerRun, check_scene, leg_kinematics, output_times, positive,
+    quat_to_rot_np, state_vector)
 
 __all__ = ["mujoco_available", "mujoco_simulate", "build_mjcf", "FOOT_MASS_RATIO",
            "FOOT_RADIUS", "MODE_STEP", "TIMECONST_STEPS", "SOLIMP"]

@@ -2,10 +2,10 @@
 
 The usual alternative to a contact step. The body, its legs and their force
 law are symcushion's own — the strut's CasADi expression P(ρ, ρ̇) of (2.1)
-from ``symcushion.strut``, with the same axial stiffness for 'rigid' rods
+from ``symcushion.legs.strut``, with the same axial stiffness for 'rigid' rods
 (``RIGID_AXIAL_RATIO``) — but each foot is given a small mass m_f and the
 obstacle pushes it with a stiff normal spring-damper on the penetration
-p = max(−d, 0) (d the signed distance of ``symcushion.obstacles``):
+p = max(−d, 0) (d the signed distance of ``symcushion.model.obstacles``):
 
     F_n = max(k p + c ṗ, 0) n,  ṗ = −n·v_f                       (Kelvin–Voigt)
     F_t = −μ |F_n| v_t / sqrt(|v_t|² + v_s²)                   (regularised Coulomb)
@@ -36,13 +36,13 @@ import time
 import casadi as ca
 import numpy as np
 
-from ..obstacles import ImplicitSurface, Plane, Sphere
-from ..scene_data import Scene
-from ..layout import BODY_STATE, BODY_STATE_FIELDS, state_layout
-from ..quaternion import quat_mul, quat_to_rot
-from ..vector_fields import Field, VectorLayout
-from .run import (PeerRun, check_scene, leg_kinematics, nonnegative, output_times, positive,
-                  quat_to_rot_np, state_vector)
+from symcushion.model.obstacles import ImplicitSurface, Plane, Sphere
+from symcushion.model.scene_data import Scene
+from symcushion.scheme.layout import BODY_STATE, BODY_STATE_FIELDS, state_layout
+from symcushion.scheme.quaternion import quat_mul, quat_to_rot
+from symcushion.scheme.vector_fields import Field, VectorLayout
+from symcushion.peers.run import (PeerRun, check_scene, leg_kinematics, nonnegative, output_times,
+    positive, quat_to_rot_np, state_vector)
 
 __all__ = ["penalty_simulate", "build_penalty_ode", "default_stiffness", "FOOT_MASS_RATIO",
            "STATIC_PENETRATION", "LEG_STIFFNESS_RATIO",
@@ -181,7 +181,7 @@ def build_penalty_ode(scene: Scene, *, stiffness: float, damping: float, slip_ve
         contact = ca.DM.zeros(3)
         deepest = -ca.inf
         for ob in scene.obstacles:
-            # a footpad's centre against the obstacle's offset surface (symcushion.obstacles)
+            # a footpad's centre against the obstacle's offset surface (symcushion.model.obstacles)
             d = ob.distance(r_f, leg.footpad)
             n = ob.normal(r_f, leg.footpad)
             depth = ca.fmax(-d, 0.0)
@@ -211,7 +211,7 @@ def penalty_state(scene: Scene, x0=None) -> np.ndarray:
 
     ``x0`` may be given in the penalty layout (13 + 6N: body, then each
     foot's world position and velocity) or in symcushion's layout
-    (13 + 7N, e.g. :func:`symcushion.simulate.initial_state` or
+    (13 + 7N, e.g. :func:`symcushion.scheme.touchdown_states.initial_state` or
     ``equilibrium_state``): then each foot starts at the stored position,
     moving with the body, v + R(ω × ρ).
     """

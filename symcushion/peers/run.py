@@ -1,6 +1,6 @@
 """The result of a peer simulator and the helpers both peers share.
 
-A peer simulator integrates the same :class:`~symcushion.scene.Scene` as
+A peer simulator integrates the same :class:`~symcushion.model.scene.Scene` as
 ``symcushion.simulate`` with a different contact model (``penalty``:
 a stiff spring-damper integrated by CVODES; ``mujoco_model``: MuJoCo's soft
 constraints). This module owns what they have in common: the
@@ -15,9 +15,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..quaternion import quat_to_rot_np
-from ..scene_data import Scene
-from ..touchdown import initial_state
+from symcushion.scheme.quaternion import quat_to_rot_np
+from symcushion.model.scene_data import Scene
+from symcushion.scheme.touchdown import initial_state
 
 __all__ = ["PeerRun", "output_times", "leg_kinematics", "trajectory_deflection",
            "rebound_speed"]

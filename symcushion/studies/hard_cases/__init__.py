@@ -57,7 +57,7 @@ adaptive driver), ``table`` (the Markdown table and reading it back) and
 """
 from __future__ import annotations
 
-from symcushion.contact_args import METHODS
+from symcushion.contact.args import METHODS
 
 from .cases import (CASES, G, GRAZE_DEPTH, NEAR_SINGULAR_GAMMA0, NEAR_SINGULAR_MISS,
                     NEAR_SINGULAR_SPEED, RECONTACT_DROP, REST_KICK, SLOPE, SLOPE_MARGIN,

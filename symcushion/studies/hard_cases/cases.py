@@ -12,13 +12,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from symcushion.characteristics import Linear
-from symcushion.layout import state_layout
-from symcushion.quaternion import quat_to_rot_np
-from symcushion.obstacles import Plane, Sphere
-from symcushion.scene_data import Body, Scene, symmetric_legs
-from symcushion.simulate import build_model, equilibrium_state, initial_state, stable_dt
-from symcushion.strut import HingedStrut
+from symcushion.legs.characteristics import Linear
+from symcushion.scheme.layout import state_layout
+from symcushion.scheme.quaternion import quat_to_rot_np
+from symcushion.model.obstacles import Plane, Sphere
+from symcushion.model.scene_data import Body, Scene, symmetric_legs
+from symcushion.scheme.touchdown import build_model, equilibrium_state, initial_state
+from symcushion.scheme.stability import stable_dt
+from symcushion.legs.strut import HingedStrut
 
 #: Standard gravity (m/s²) of the re-contact case's closed form, as in its scene.
 G = 9.81

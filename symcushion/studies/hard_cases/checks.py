@@ -13,11 +13,11 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from symcushion.characteristics import Linear
-from symcushion.layout import state_layout
-from symcushion.quaternion import quat_to_rot, quat_to_rot_np
-from symcushion.obstacles import closest_obstacle
-from symcushion.scene_data import Scene
+from symcushion.legs.characteristics import Linear
+from symcushion.scheme.layout import state_layout
+from symcushion.scheme.quaternion import quat_to_rot, quat_to_rot_np
+from symcushion.model.obstacles import closest_obstacle
+from symcushion.model.scene_data import Scene
 
 from .cases import Setup
 

@@ -10,8 +10,8 @@ import time
 
 import numpy as np
 
-from symcushion import report
-from symcushion.contact_args import METHODS
+from symcushion.run import report
+from symcushion.contact.args import METHODS
 
 from .cases import CASES, explicit_limit
 from .checks import CONE_TOL, CREEP_TOL, ENERGY_TOL, PENETRATION_TOL, SYMMETRY_TOL, WORK_TOL

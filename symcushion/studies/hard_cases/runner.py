@@ -10,9 +10,10 @@ import time
 
 import numpy as np
 
-from symcushion.contact_args import METHODS
-from symcushion.layout import state_layout
-from symcushion.simulate import build_model, initial_state, simulate, trajectory_from
+from symcushion.contact.args import METHODS
+from symcushion.scheme.layout import state_layout
+from symcushion.scheme.touchdown import build_model, initial_state
+from symcushion.run.driver import simulate, trajectory_from
 
 from .cases import CASES
 from .checks import Result, Stats, invariant_function, symmetry_error

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from symcushion.contact_args import METHODS
+from symcushion.contact.args import METHODS
 
 from .cases import STIFF_FRACTION, recontact_flights
 from .checks import Result

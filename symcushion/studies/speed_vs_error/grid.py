@@ -15,7 +15,7 @@ STUDIES = ROOT / "studies"
 FIGURES = ROOT / "figures"
 DOC = ROOT / "docs" / "speed-vs-error.md"
 #: One build folder per scene and method (git-ignored ``build/``): a process
-#: cannot load two different libraries from one path (symcushion.codegen).
+#: cannot load two different libraries from one path (symcushion.compiled.codegen).
 BUILD = ROOT / "build" / "speed_vs_error"
 QUICK_OUT = Path("/tmp/symcushion-sve/quick")
 

@@ -9,7 +9,7 @@ import argparse
 import time
 from pathlib import Path
 
-from symcushion import report
+from symcushion.run import report
 
 from .csv_io import write_csv
 from .grid import DOC, DT_GRID, DT_REF, FIGURES, QUICK_DT_GRID, QUICK_DT_REF, QUICK_OUT, SCENES

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from symcushion.scene_data import Scene
+from symcushion.model.scene_data import Scene
 
 from .runs import Run
 

@@ -11,7 +11,7 @@ import time
 
 import numpy as np
 
-from symcushion.scene_data import Scene
+from symcushion.model.scene_data import Scene
 
 from .grid import MUJOCO_TIMESTEPS, PEER_OUTPUT_DT, PENALTY_RTOLS
 from .metrics import result_row

@@ -12,12 +12,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from symcushion.codegen import CompiledModel
-from symcushion.layout import state_layout
-from symcushion.layout_params import default_p
-from symcushion.quaternion import quat_to_rot_np
-from symcushion.scene_data import Scene
-from symcushion.simulate import initial_state
+from symcushion.compiled.codegen import CompiledModel
+from symcushion.scheme.layout import state_layout
+from symcushion.scheme.layout_params import default_p
+from symcushion.scheme.quaternion import quat_to_rot_np
+from symcushion.model.scene_data import Scene
+from symcushion.scheme.touchdown import initial_state
 
 from .grid import BEST_OF, CHUNK, REPEAT_BELOW
 

@@ -11,10 +11,10 @@ import json
 import time
 from pathlib import Path
 
-from symcushion.codegen import compiled_model
-from symcushion.scene import load_scene
-from symcushion.scene_data import Scene
-from symcushion.simulate import build_model
+from symcushion.compiled.codegen import compiled_model
+from symcushion.model.scene import load_scene
+from symcushion.model.scene_data import Scene
+from symcushion.scheme.touchdown import build_model
 
 from .grid import BUILD, CHUNK, SCENES, STUDIES, VARIANTS, VM_MAX_STEPS, applies
 from .metrics import errors, metrics, result_row, trajectory_error

@@ -1,0 +1,484 @@
+"""The feet's contact steps inside one touchdown step.
+
+This module owns what happens to each foot over one body step whose poses
+are given (§1, §3 of the paper): where a free foot's unloaded position
+crosses the obstacle, the contact step of ``symcushion.contact`` on the
+tangent plane (and its second pass at the predicted end point; a foot
+with a pad of radius a is the pad's centre, on the obstacle's surface offset
+by a, ``symcushion.model.obstacles``), the
+midpoint slip rule of ``symcushion.contact.midpoint`` with the start force
+carried into the frame of the end of the step, and, with ``events =
+"branch"`` or ``"lock"`` (a leg that is not locked), the contact step split
+at a located branch switch of the axial absorber (``symcushion.scheme.branch_switch``)
+in a call that runs only where a switch is possible. On the memory law
+(``symcushion.legs.absorber``) it locates a touchdown, a lift-off and a crush
+onset inside the step and returns the kick's correction for each
+(docs/absorbers.md, "Located touchdown and lift-off"). It returns each
+foot's end pose, end force and what the touchdown step needs to kick the
+body.
+
+It must not move the body (the kicks, the drift and the stroke lock's
+solves are ``symcushion.scheme.touchdown``'s), change the contact step or the force
+law (2.1), or validate user input.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+
+from symcushion.scheme.branch_switch import (branch_flip, locates_switch, stored_branch,
+    switch_in_step)
+from symcushion.contact.dispatch import contact_step_call
+from symcushion.contact.guards import at_least, at_most
+from symcushion.contact.midpoint import midpoint_slip_call
+from symcushion.scheme.quaternion import quat_exp, quat_mul, quat_to_rot
+from symcushion.model.obstacles import Plane, closest_obstacle
+from symcushion.scheme.stroke_lock import axial_branches, skip_unless
+
+__all__ = ["StepPoses", "LegInput", "FeetStep", "MIN_CONTACT_FRACTION"]
+
+#: The shortest part of a step over which a foot that touches down inside it is
+#: taken to be in contact (of Δt), for the dampers' rate over that part: it keeps
+#: the damper's step stiffness c/((1 − θ)Δt) finite when the foot touches at the
+#: very end of a step; 1e-3 keeps it below 1e3 times the whole step's, far from
+#: round-off, and is reached only by feet that touch in the step's last 0.1 %.
+MIN_CONTACT_FRACTION = 1e-3
+
+
+def turned(v, a, b):
+    """``v`` turned by the smallest rotation that takes the unit vector ``a`` to ``b``
+    (Rodrigues; a and b closer than 90°, as two normals of one step are)."""
+    axis = ca.cross(a, b)
+    return v + ca.cross(axis, v) + ca.cross(axis, ca.cross(axis, v)) / (1 + ca.dot(a, b))
+
+
+@dataclass(frozen=True)
+class StepPoses:
+    """The body over one step of length ``h`` (CasADi expressions): at the start
+    ``pos``, ``quat``, ``R`` (world), ``vel`` (m/s, world), ``omega`` (rad/s,
+    body); the drift's velocities ``vel_h``, ``omega_h`` (those of the middle of
+    the step); at the end ``pos1``, ``R1``."""
+
+    h: ca.SX
+    pos: ca.SX
+    quat: ca.SX
+    R: ca.SX
+    vel: ca.SX
+    omega: ca.SX
+    vel_h: ca.SX
+    omega_h: ca.SX
+    pos1: ca.SX
+    R1: ca.SX
+
+
+@dataclass(frozen=True)
+class LegInput:
+    """One leg in the step: its ``strut`` (:class:`~symcushion.legs.strut.HingedStrut`),
+    its Functions ``fns`` and curve parameters ``p_leg``, its unloaded foot
+    ``rest`` (body frame), its state entries ``foot`` (``foot``, ``contact``,
+    ``force_body``) and its foot at the start ``rho0`` (body frame); under
+    the memory law (``symcushion.legs.absorber``) its elements' sets at the start
+    ``sets`` (3) and their mean rates over the previous step ``chords`` (3)
+    (else None), with ``fns`` holding the leg's ``memory_functions`` too; then
+    ``rest`` is the free foot at the end of the step and ``rest_start`` the
+    free foot at its start (a damped foot relaxes over the step). ``pad``: its
+    footpad radius a (m; a float, or the entry of ``p``), the foot being the pad's
+    centre on the obstacle's surface offset by a (0.0 builds a point foot's step)."""
+
+    strut: object
+    fns: dict
+    p_leg: ca.SX
+    rest: ca.DM
+    foot: dict
+    rho0: ca.SX
+    sets: ca.SX | None = None
+    chords: ca.SX | None = None
+    rest_start: ca.SX | None = None
+    pad: ca.SX | float = 0.0
+
+
+class FeetStep:
+    """The contact steps of the feet of one body step.
+
+    Parameters
+    ----------
+    scene : Scene
+        Its obstacles, contact ``method``, ``tangent_plane``, ``slip`` and
+        ``events``.
+    poses : StepPoses
+    mu : casadi.SX or float
+        The Coulomb coefficient (0.0 for a frictionless scene).
+    step_inputs : list of casadi.SX
+        The symbols of the step Function's inputs (x, p, dt), on which the
+        gated calls are built.
+
+    Attributes
+    ----------
+    gated : dict
+        The gated calls built so far, by name (``touchdown_split_{j}``), as the
+        SX Functions they run.
+    """
+
+    def __init__(self, scene, poses: StepPoses, mu, step_inputs):
+        self.scene, self.poses, self.mu = scene, poses, mu
+        self.friction = scene.mu > 0
+        # a curved obstacle turns the tangent plane between a step's predicted and final
+        # foot points
+        self.curved = not all(isinstance(o, Plane) for o in scene.obstacles)
+        self.step_inputs = list(step_inputs)
+        self.gated = {}
+        P = poses
+        quat_mid = quat_mul(P.quat, quat_exp(P.h / 2 * P.omega_h))
+        self.kin_start = dict(R=P.R, v=P.vel, omega=P.omega)            # exact at the start
+        self.kin_mid = dict(R=quat_to_rot(quat_mid / ca.norm_2(quat_mid)), v=P.vel_h,
+                            omega=P.omega_h)
+
+    def contact_from(self, leg: LegInput, rho_s, r_s, pos_e, R_e, rate_of, R_s, span=None):
+        """The contact step of ``leg``'s foot from ``rho_s`` (body frame) at the world
+        point ``r_s``, the body going from attitude ``R_s`` to the pose (``pos_e``,
+        ``R_e``); ``rate_of(l)`` is the rate that selects the branches; ``span``: the
+        dampers' rate over a touchdown's part of the step (:meth:`damper_rate`).
+        Returns the step's outputs, l, n_b, the world normal and the rate."""
+        scene, mu, friction = self.scene, self.mu, self.friction
+        fns, p_leg = leg.fns, leg.p_leg
+        pad = leg.pad
+        _, normal_w, _ = closest_obstacle(scene.obstacles, r_s, pad)
+        l = R_e.T @ (r_s - pos_e) - rho_s                      # §3: l_j, exact kinematics
+        n_b = R_e.T @ normal_w
+        u0 = rho_s - leg.rest
+        v_rel = rate_of(l)
+        if leg.sets is None:
+            P0 = fns["strut_force"](rho_s, v_rel, p_leg)
+            Dp = fns["strut_stiffness"](rho_s, v_rel, p_leg)
+        else:
+            rate = self.damper_rate(leg, rho_s, span)
+            P0, Dp = self.memory_linearisation(leg, rho_s, l, rate)
+        out = contact_step_call(scene.method, P0, Dp, n_b, l, mu, u0, friction=friction)
+        if scene.tangent_plane == "end" or leg.sets is not None:
+            # second pass: the tangent plane at the predicted end point, shifted along
+            # its normal so that a sticking foot keeps its world point r_s; on the memory
+            # law, the force law linearised there too, in the regime the foot reaches
+            # (a slipping foot may leave the band where a sticking one would enter it)
+            if scene.tangent_plane == "end":
+                _, _, r_pred = closest_obstacle(scene.obstacles,
+                                                pos_e + R_e @ (rho_s + out["delta"]), pad)
+                _, normal_w, _ = closest_obstacle(scene.obstacles, r_pred, pad)
+                n_b = R_e.T @ normal_w
+                l = l + n_b * ca.dot(n_b, R_e.T @ (r_pred - r_s))
+            if leg.sets is not None:
+                P0, Dp = self.memory_linearisation(leg, rho_s, out["delta"], rate)
+            out = contact_step_call(scene.method, P0, Dp, n_b, l, mu, u0,
+                                    friction=friction)
+        if scene.slip == "midpoint" and friction:
+            # second-order slip direction (symcushion.contact.midpoint); μ = 0 has none.
+            # The start force turns with the body into the frame of the end.
+            turn = R_e.T @ R_s - ca.DM.eye(3)
+            if leg.sets is None:
+                out = midpoint_slip_call(P0, Dp, n_b, l, mu, out, turn)
+            else:
+                out = self.memory_midpoint(leg, P0, Dp, n_b, l, out, turn)
+        return out, l, n_b, normal_w, v_rel
+
+    def memory_midpoint(self, leg: LegInput, P0, Dp, n_b, l, out, turn):
+        """The midpoint slip rule (M1) of a leg on the memory law, its trial path
+        started at the foot's own start force.
+
+        The rule weighs the slip direction between the force at the start of the
+        slip and the end force, and takes the start from its trial path P₀ + α D_p l
+        at α = 0. On the memory law P₀ is the offset of the law linearised about
+        the end foot with the dampers' end rate (A3): it is not the start force,
+        and differs from it by the dampers' c(ẋ₁ − ẋ₀), O(1) in the step; a
+        sliding damped foot then slips along an O(1)-wrong mean direction, first
+        order over a slide. A foot in contact at the start has its stored force
+        F₀: the path is moved to start there, P₀ ← F₀ and l ← l + D_p⁻¹(P₀ − F₀),
+        which keeps the trial end force P₀ + D_p l and so the backward-Euler
+        step's outputs; the foot's δ is l − g of the original l.
+        """
+        F0 = leg.foot["force_body"]
+        in_contact = leg.foot["contact"] > 0.5
+        start = ca.if_else(in_contact, F0, P0)
+        l_start = ca.if_else(in_contact, l + ca.solve(Dp, P0 - F0), l)
+        got = midpoint_slip_call(start, Dp, n_b, l_start, self.mu, out, turn)
+        got["delta"] = ca.if_else(got["contact"] > 0.5, l - got["k"], got["delta"])
+        return got
+
+    def damper_rate(self, leg: LegInput, rho_s, span=None):
+        """(a, b) of the dampers' end rate a·x + b by (A3), from the foot ρ_s at the
+        start of the step and the previous step's mean rate.
+
+        ``span`` = (touching, h_c): where ``touching`` is set the foot touched down
+        inside the step and has been in contact for h_c only; its rate is then the
+        mean rate over that part, (x − x₀)/h_c. The two-step difference (A3) would
+        spread the contact's motion over the whole step and the previous free
+        step's rate, and carry an O(1) error into the end force at every touchdown
+        behind a damper (docs/absorbers.md, "Located touchdown and lift-off").
+        """
+        x0 = leg.fns["strut_deflections"](rho_s, leg.p_leg)    # δ_S, β, γ − γ₀ at the start
+        h = self.poses.h
+        a, b = 1.5 / h, -1.5 * x0 / h - 0.5 * leg.chords               # (A3)
+        if span is None:
+            return a, b
+        touching, h_c = span
+        return ca.if_else(touching, 1 / h_c, a), ca.if_else(touching, -x0 / h_c, b)
+
+    @staticmethod
+    def memory_linearisation(leg: LegInput, rho_s, d, rate):
+        """P₀ and D_p of (1.3) for a leg on the memory law: the force law linearised
+        about the foot ρ_s + d, in the regime it reaches there.
+
+        The law (A1) has kinks where the element starts or stops crushing; the
+        tangent at the start would carry the start's regime through the whole
+        step. The first pass linearises about the foot that sticks (d = l), the
+        second about the first pass's end foot: a sticking foot's end force is
+        then the law's to round-off whatever regime it enters, and a slipping
+        foot's differs by the curvature over the second correction only.
+        """
+        fns, s0, p_leg = leg.fns, leg.sets, leg.p_leg
+        rho_d = rho_s + d
+        Dp = fns["strut_stiffness_memory"](rho_d, s0, p_leg, *rate, rho_d)
+        return fns["strut_force_memory"](rho_d, s0, p_leg, *rate) - Dp @ d, Dp
+
+    def event_kick(self, leg: LegInput, at: dict):
+        """The kick's correction for a foot on the memory law that touches down or
+        lifts off inside the step (docs/absorbers.md, "Located touchdown and
+        lift-off"): (force, torque), N in world axes and N·m in body axes, whose
+        impulse h·force the second half kick adds.
+
+        Velocity Verlet takes the impulse of a leg's force over a step as
+        h(F₀ + F₁)/2. A foot that touches at θ (``at["theta"]``, from its free
+        gap) carries no force before θh, and behind a damper its force jumps at θh
+        to F*, the force of the end rates with the foot where it touched; the
+        impulse is (1 − θ)h(F* + F₁)/2. A foot that lifts off carries its force to
+        zero at θ_off = N₀/(N₀ − N₁), N₁ the normal force it would have at the
+        end held where it was (its end force, exact on the law at the stuck foot);
+        the impulse is θ_off h F₀/2. Where the force jumps (behind a damper) these
+        differ from Verlet's by O(h) once per event, first order; where it does not,
+        by O(h²) with a constant that changes with θ. A crush onset inside the step
+        adds :meth:`kink_kick`.
+        """
+        P, fns, p_leg = self.poses, leg.fns, leg.p_leg
+        rho_s, n_b, stays = at["rho_s"], at["n_b"], at["stays"]
+        theta, (touching, _) = at["theta"], at["span"]
+        F0 = leg.foot["force_body"]
+        # touchdown: the force jumps to F* at θ; F* has the end rates at the touch foot
+        a, b = self.damper_rate(leg, rho_s, at["span"])
+        rate_end = a * fns["strut_deflections"](at["rho1"], p_leg) + b
+        F_star = self.in_cone(fns["strut_force_memory"](rho_s, leg.sets, p_leg, 0.0, rate_end),
+                              n_b)
+        down = ca.logic_and(touching, stays)
+        w_star = ca.if_else(down, (1 - theta) / 2, 0.0)
+        w_end = ca.if_else(down, -theta / 2, 0.0)
+        # lift-off: the normal force held at the stuck foot crosses zero at θ_off
+        stuck = fns["strut_force_memory"](rho_s + at["l"], leg.sets, p_leg,
+                                          *self.damper_rate(leg, rho_s))
+        N0, N1 = ca.dot(n_b, F0), ca.dot(n_b, stuck)
+        crosses = N0 * N1 < 0
+        theta_off = ca.if_else(crosses, N0 / ca.if_else(crosses, N0 - N1, 1.0), 1.0)
+        off = ca.logic_and(leg.foot["contact"] > 0.5, ca.logic_not(stays))
+        w_start = ca.if_else(off, -(1 - theta_off) / 2, 0.0)
+        end = w_star * F_star + w_end * at["P1"]
+        if "strut_crush_curve" in fns:
+            end = end + self.kink_kick(leg, at)
+        force = P.R1 @ end + w_start * (P.R @ F0)
+        torque = ca.cross(at["rho1"], end) + w_start * ca.cross(rho_s, F0)
+        return force, torque
+
+    def in_cone(self, F, n):
+        """``F`` with its tangential part cut to the friction cone μ·max(n·F, 0) (1.4):
+        the force a foot can carry at the instant it touches, sliding where a damper
+        asks for more (at that instant its normal force is the elastic one's, zero
+        for a foot that lands on a crushable's elastic rise)."""
+        N = ca.fmax(ca.dot(n, F), 0.0)
+        tangential = F - ca.dot(n, F) * n
+        size = ca.norm_2(tangential)
+        bound = self.mu * N
+        scale = ca.if_else(size > bound, bound / ca.if_else(size > 0, size, 1.0), 1.0)
+        return N * n + scale * tangential
+
+    def kink_kick(self, leg: LegInput, at: dict):
+        """The kick's correction (N, body axes of the end, times h) for the bend of the
+        axial element's loading curve inside the step while it crushes along it: the
+        onset of crushing, where the honeycomb's elastic rise meets its plateau
+        (docs/absorbers.md, "Located touchdown and lift-off").
+
+        Along the step the force follows the curve's two lines, slope k₀ at the
+        start stroke x₀ and k₁ at the end stroke x₁; they meet at x_k, at
+        θ = (x_k − x₀)/(x₁ − x₀) of the part of the step in contact, h_c. The
+        trapezoid rule's impulse misses h_c θ(1 − θ)(k₀ − k₁)(x₁ − x₀)/2 there:
+        O(h²) once, but with the honeycomb's k·v in it (2e6 N/s on the tutorial
+        lander: 7e-3 m/s at Δt = 1 ms), and changing with where the bend falls
+        in the step. Taken where the element crushed in the step (its set moved),
+        so that its force followed the curve.
+        """
+        fns, p_leg = leg.fns, leg.p_leg
+        touching, h_c = at["span"]
+        x0 = fns["strut_deflections"](at["rho_s"], p_leg)[0]
+        x1 = fns["strut_deflections"](at["rho1"], p_leg)[0]
+        f0, k0 = fns["strut_crush_curve"](x0, p_leg)
+        f1, k1 = fns["strut_crush_curve"](x1, p_leg)
+        dx, dk = x1 - x0, k0 - k1
+        bends = ca.logic_and(ca.fabs(dk) > 0, ca.fabs(dx) > 0)
+        x_k = (f1 - f0 + k0 * x0 - k1 * x1) / ca.if_else(bends, dk, 1.0)
+        theta = (x_k - x0) / ca.if_else(bends, dx, 1.0)
+        inside = ca.logic_and(ca.logic_and(bends, theta > 0), theta < 1)
+        held = ca.logic_and(at["stays"], ca.logic_or(leg.foot["contact"] > 0.5, touching))
+        crushed = ca.fabs(at["sets_end"][0] - leg.sets[0]) > 0
+        kink = ca.logic_and(ca.logic_and(inside, held), crushed)
+        share = ca.if_else(touching, h_c, self.poses.h) / self.poses.h
+        e_S = fns["strut_geometry"].call(dict(r=at["rho1"]))["e_S"]
+        return ca.if_else(kink, share * theta * (1 - theta) * dk * dx / 2, 0.0) * e_S
+
+    def on_surface(self, rho, delta, pos_e, R_e, pad=0.0):
+        """The foot ρ + δ at the pose (pos_e, R_e) put on the obstacle (its offset surface
+        for a footpad of radius ``pad``): world, body."""
+        _, _, w = closest_obstacle(self.scene.obstacles, pos_e + R_e @ (rho + delta), pad)
+        return w, R_e.T @ (w - pos_e)
+
+    def split_at_switch(self, leg: LegInput, rho_s, r_s, stored):
+        """The contact step of ``leg``'s foot split at its axial branch switch: on the
+        stored curve up to the switch, the foot's jump onto the other curve there,
+        then on to the end. Returns the split step's (out, l, n_b, world normal,
+        rate, start foot ρ of its last part) and the switch's ``use`` and θ."""
+        P = self.poses
+        h, fns, p_leg = P.h, leg.fns, leg.p_leg
+
+        def on_branch(loading, rho):
+            a = axial_branches(fns, p_leg, rho)
+            rate = ca.if_else(loading, 1.0, -1.0) * ca.dot(a["loading"], a["e_S"])
+            return lambda l_: l_ / h + (rate - ca.dot(a["e_S"], l_ / h)) * a["e_S"]
+
+        # where the switching function crosses zero, following the sliding foot: its
+        # middle position on the stored curve over the whole step
+        whole, _, _, _, _ = self.contact_from(leg, rho_s, r_s, P.pos1, P.R1,
+                                              on_branch(stored, rho_s), P.R)
+        sw = switch_in_step(fns, rho_s, rho_s + whole["delta"] / 2, stored, self.kin_start,
+                            self.kin_mid)
+        theta = sw["theta"]
+        pos_t = P.pos + theta * h * P.vel_h
+        quat_t = quat_mul(P.quat, quat_exp(theta * h * P.omega_h))
+        R_t = quat_to_rot(quat_t / ca.norm_2(quat_t))
+        new = ca.logic_not(stored)
+        # up to the switch on the stored curve
+        before, _, _, _, _ = self.contact_from(leg, rho_s, r_s, pos_t, R_t,
+                                               on_branch(stored, rho_s), P.R)
+        foot_t, rho_t = self.on_surface(rho_s, before["delta"], pos_t, R_t, leg.pad)
+        # at the switch the massless foot finds its equilibrium on the new curve at
+        # once (l = 0: the body does not move during the jump)
+        jump, _, _, _, _ = self.contact_from(leg, rho_t, foot_t, pos_t, R_t,
+                                             on_branch(new, rho_t), R_t)
+        foot_t, rho_t = self.on_surface(rho_t, jump["delta"], pos_t, R_t, leg.pad)
+        after, l, n_b, normal_w, v_rel = self.contact_from(leg, rho_t, foot_t, P.pos1, P.R1,
+                                                           on_branch(new, rho_t), R_t)
+        use = ca.logic_and(ca.logic_and(sw["switches"], leg.foot["contact"] > 0.5),
+                           ca.logic_and(before["contact"] > 0.5, jump["contact"] > 0.5))
+        return (after, l, n_b, normal_w, v_rel, rho_t), dict(use=use, theta=theta)
+
+    def foot(self, j, leg: LegInput, release=None, stored=None) -> dict:
+        """The contact step of foot ``j``. ``release`` = (flag, e_S, rate): where the
+        flag is set, the axial component of the chord's rate l/h (which picks the
+        branch) is replaced by ``rate``, and the step is not split. ``stored``: the
+        stored force's curve (1 loading) where the state keeps it, else read from
+        the force."""
+        scene, P = self.scene, self.poses
+        h, foot = P.h, leg.foot
+        in_contact = foot["contact"] > 0.5
+        # free foot: where does its unloaded position cross the surface?
+        free0 = P.pos + P.R @ (leg.rest if leg.rest_start is None else leg.rest_start)
+        free1 = P.pos1 + P.R1 @ leg.rest
+        d0, _, _ = closest_obstacle(scene.obstacles, free0, leg.pad)
+        d1, _, _ = closest_obstacle(scene.obstacles, free1, leg.pad)
+        crossing = d0 - d1
+        tau = ca.if_else(crossing > 0, d0 / ca.if_else(crossing > 0, crossing, 1.0), 0.0)
+        tau = at_most(at_least(tau, 0.0), 1.0)
+        _, _, touch = closest_obstacle(scene.obstacles, free0 + tau * (free1 - free0), leg.pad)
+        touches = d1 < 0
+        active = ca.logic_or(in_contact, touches)
+        span = None
+        if leg.sets is not None:
+            # a touchdown at θ = tau: in contact over the step's last (1 − θ)h only
+            touching = ca.logic_and(ca.logic_not(in_contact), touches)
+            span = (touching, h * ca.fmax(1 - tau, MIN_CONTACT_FRACTION))
+
+        r_s = ca.if_else(in_contact, foot["foot"], touch)        # world point of the plane
+        rho_s = leg.rho0                                         # foot, body frame
+
+        def chord_rate(l):
+            v_rel = l / h                                      # selects loading branches
+            if release is not None:
+                flag, e_S, rate = release
+                v_rel = ca.if_else(flag, v_rel + (rate - ca.dot(e_S, v_rel)) * e_S, v_rel)
+            return v_rel
+
+        out, l, n_b, normal_w, v_rel = self.contact_from(leg, rho_s, r_s, P.pos1, P.R1,
+                                                         chord_rate, P.R, span)
+        rho_last, split, l_whole = rho_s, None, l
+        if scene.events in ("branch", "lock") and locates_switch(leg.strut):
+            # the split step, in a call that runs only where the foot is in contact and
+            # either the chord or the switching function at the unsplit step's middle
+            # foot point (the split's own where the chord keeps the stored curve) says
+            # the curve changes: elsewhere (B2) finds no switch and the call's value is
+            # the unsplit step's
+            fns, p_leg = leg.fns, leg.p_leg
+            if stored is None:
+                stored = stored_branch(fns, p_leg, rho_s, foot["force_body"])
+            flip, _ = branch_flip(fns, p_leg, rho_s, foot["force_body"], l, h, stored)
+            near = switch_in_step(fns, rho_s, rho_s + out["delta"] / 2, stored, self.kin_start,
+                                  self.kin_mid)["switches"]
+            candidate = ca.logic_and(in_contact, ca.logic_or(flip, near))
+            if release is not None:
+                candidate = ca.logic_and(candidate, ca.logic_not(release[0]))
+            keys = sorted(out)
+            plain = [out[k] for k in keys] + [l, n_b, normal_w, v_rel, rho_s]
+            plain_in = [ca.SX.sym(f"plain{k}", x.sparsity()) for k, x in enumerate(plain)]
+            parts, sw = self.split_at_switch(leg, rho_s, r_s, stored)
+            parts = [parts[0][k] for k in keys] + list(parts[1:])
+            on = [ca.if_else(sw["use"], a, b) for a, b in zip(parts, plain_in)]
+            got, self.gated[f"touchdown_split_{j}"] = skip_unless(
+                f"touchdown_split_{j}", candidate, self.step_inputs + plain_in,
+                self.step_inputs + plain,
+                on + [sw["use"], ca.if_else(sw["use"], sw["theta"], 0.5)],
+                plain_in + [ca.SX(0), ca.SX(0.5)])
+            out = dict(zip(keys, got[:len(keys)]))
+            l, n_b, normal_w, v_rel, rho_last = got[len(keys):len(keys) + 5]
+            split = dict(use=got[-2], theta=got[-1])
+        stays = ca.logic_and(active, out["contact"] > 0.5)
+        rho1 = ca.if_else(stays, rho_last + out["delta"], leg.rest)
+        foot_w = P.pos1 + P.R1 @ rho1
+        _, _, foot_proj = closest_obstacle(scene.obstacles, foot_w, leg.pad)
+        foot_w = ca.if_else(stays, foot_proj, foot_w)
+        if self.curved:
+            _, normal_end, _ = closest_obstacle(scene.obstacles, foot_proj, leg.pad)
+        else:                       # on planes the predicted normal is the final one
+            normal_end = normal_w
+        rho1 = ca.if_else(stays, P.R1.T @ (foot_w - P.pos1), rho1)
+        # the force found with the tangent plane at the predicted end point, turned with
+        # that plane onto the plane at the foot's final point: a frictionless force is then
+        # normal where the foot is, and on a curved obstacle does no work on its slide
+        P_end = turned(out["P"], n_b, P.R1.T @ normal_end) if self.curved else out["P"]
+        P1 = ca.if_else(stays, P_end, ca.DM.zeros(3))
+        sets, chords = leg.sets, leg.chords
+        if sets is not None:
+            # the end force and sets of the memory law at the end foot (A1)-(A3): a stroke
+            # grows only at its loading curve's force, whatever the foot did
+            fns, rate = leg.fns, self.damper_rate(leg, rho_s, span)
+            P1 = ca.if_else(stays, fns["strut_force_memory"](rho1, sets, leg.p_leg, *rate),
+                            ca.DM.zeros(3))
+            sets_end = fns["strut_next_set"](rho1, sets, leg.p_leg, *rate)
+            events = self.event_kick(leg, dict(rho_s=rho_s, l=l, n_b=n_b, rho1=rho1, P1=P1,
+                                               stays=stays, theta=tau, span=span,
+                                               sets_end=sets_end))
+            # the mean rates of the elastic deflections x − s, which (A3) of the next step
+            # reads (for an element that keeps no set, of x); after a touchdown, over
+            # the part of the step in contact
+            moved = ((fns["strut_deflections"](rho1, leg.p_leg) - sets_end)
+                     - (fns["strut_deflections"](rho_s, leg.p_leg) - sets)) / ca.if_else(
+                         span[0], span[1], h)
+            sets = sets_end
+            # a free foot's elements that do not relax (a strut's hinge angles) return to
+            # rest at once: no rate to carry
+            chords = ca.if_else(stays, moved, moved * ca.DM(leg.strut.relaxes_free))
+        return dict(in_contact=in_contact, active=active, stays=stays, rho_s=rho_s, r_s=r_s,
+                    l=l, n_b=n_b, v_rel=v_rel, normal_w=normal_end, out=out, rho1=rho1,
+                    foot_w=foot_w, P1=P1, locked=ca.SX(0), split=split, l_whole=l_whole,
+                    sets=sets, chords=chords, events=events if leg.sets is not None else None)
