@@ -111,7 +111,7 @@ def run(compiled: bool, cache_dir, cflags=COMPILE_FLAGS, study_path=STUDY) -> di
                rest=t["solve_seconds"] - t["jacobian_wall_seconds"],
                iterations=result.iterations, status=result.return_status,
                peak=result.evaluation.objective, feasible=result.evaluation.feasible,
-               theta=result.theta, result=result)
+               theta=result.theta, result=result, problem=problem)
     return row
 
 
@@ -151,7 +151,7 @@ def main(argv=None):
     rows = [run(True, cache, cflags, args.study)]
     _print(rows[0])
     if args.check:
-        problem, result = rows[0]["result"].problem, rows[0]["result"]
+        problem, result = rows[0]["problem"], rows[0]["result"]
         for label, theta in (("start", result.theta0), ("optimum", result.theta)):
             c = problem.check_gradient(theta)
             print(f"  gradient check at the {label}: relative {c['relative']:.2e}, objective "

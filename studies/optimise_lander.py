@@ -30,10 +30,9 @@ ROOT = Path(__file__).resolve().parents[1]
 STUDY = ROOT / "studies" / "optimise_lander.toml"
 
 
-def histories(result):
+def histories(problem, result):
     """Vertical deceleration (m/s², gravity excluded) and the largest axial
-    stroke over the legs (m) of each scenario at the optimum."""
-    problem = result.problem
+    stroke over the legs (m) of each scenario of ``problem`` at the optimum."""
     out = {}
     for k, scenario in enumerate(problem.scenarios):
         traj = simulate(scenario.scene, x0=scenario.x0, p=problem.step_params(k, result.theta))
@@ -42,9 +41,8 @@ def histories(result):
     return out
 
 
-def margins(result) -> list[dict]:
+def margins(limits, result) -> list[dict]:
     """Per scenario: peaks before and after, and each limit's margin at the optimum."""
-    limits = result.problem.limits
     rows = []
     for name, after in result.evaluation.scenarios.items():
         v_up = after["final_vertical_speed"]
@@ -65,7 +63,7 @@ def _m(value, digits):
     return f"{round(value, digits) + 0.0:.{digits}f}"
 
 
-def table(result) -> str:
+def table(problem, result) -> str:
     """The Markdown table of :func:`margins`, with status, iterations and time."""
     d = result.to_dict()
     lines = [f"Ipopt {result.return_status} after {result.iterations} iterations, "
@@ -77,7 +75,7 @@ def table(result) -> str:
              "| stroke margin (m) | hinge margin (rad) | max tilt | tilt margin "
              "| final v_up (m/s) | rebound margin (m/s) | sink margin (m/s) |",
              "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
-    for r in margins(result):
+    for r in margins(problem.limits, result):
         lines.append(f"| {r['scenario']} | {r['peak_hand']:.2f} | {r['peak_optimum']:.2f} "
                      f"| {r['stroke']:.4f} | {_m(r['stroke_margin'], 4)} | {_m(r['hinge_margin'], 4)} "
                      f"| {np.degrees(r['tilt']):.1f}° | {np.degrees(r['tilt_margin']):.1f}° "
@@ -85,7 +83,7 @@ def table(result) -> str:
     return "\n".join(lines) + "\n"
 
 
-def plot(result, path):
+def plot(problem, result, path):
     import matplotlib
 
     matplotlib.use("Agg")
@@ -99,7 +97,7 @@ def plot(result, path):
         left.plot(x, -np.asarray(start["loading"]), "o--", color="0.6", label="start (linear)")
         left.plot(x, -np.asarray(char["loading"]), "o-", label="optimum, loading")
         left.plot(x, -np.asarray(char["unloading"]), ":", label="unloading (fixed)")
-    stroke = result.problem.limits.stroke * 1e3
+    stroke = problem.limits.stroke * 1e3
     left.axvline(stroke, color="k", lw=0.8)
     # beyond the stroke limit the curve is never used: show the stroke only
     left.set_xlim(0, 1.1 * stroke)
@@ -108,7 +106,7 @@ def plot(result, path):
     left.set(xlabel="axial stroke −δ_S (mm)", ylabel="axial force −S (N)",
              title="characteristic shared by the four legs")
     left.legend(fontsize=8)
-    for name, (t, a, s) in histories(result).items():
+    for name, (t, a, s) in histories(problem, result).items():
         mid.plot(t, a, label=name)
         right.plot(t, s * 1e3, label=name)
     mid.axhline(result.evaluation.objective, color="k", lw=0.8, ls="--",
@@ -143,11 +141,11 @@ def main(argv=None):
     result = study.solve(progress=True)
     result.save_json(args.out)
     print(result.message)
-    text = table(result)
+    text = table(pb, result)
     print(text)
     args.table.parent.mkdir(parents=True, exist_ok=True)
     args.table.write_text(text)
-    plot(result, args.figure)
+    plot(pb, result, args.figure)
     print(f"wrote {args.out}, {args.table} and {args.figure}")
     return 0 if result.success else 1
 

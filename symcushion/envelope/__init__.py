@@ -15,9 +15,9 @@ Every case is the scene's ``touchdown_step`` with its conditions in the
 step's inputs (gravity and μ in ``p``), so one compiled Function serves a
 whole study; no physics is derived here (docs/envelope.md).
 """
-from symcushion.envelope.study import (VARIABLES, MAX_SLOPE_DEG, DEFAULT_BATCH, DEFAULT_CLEARANCE,
+from symcushion.envelope.study import (sample_conditions, VARIABLES, MAX_SLOPE_DEG, DEFAULT_BATCH, DEFAULT_CLEARANCE,
     DEFAULT_REST_SPEED, Range, Limits, EnvelopeStudy, study_from_dict, load_study)
-from symcushion.envelope.sampling import SOBOL_BITS, sobol, sample_unit, sample_conditions
+from symcushion.envelope.sampling import SOBOL_BITS, sobol, sample_unit
 from symcushion.envelope.cases import (SUMMARY, DECEL_FILTER_TIME, initial_states,
     envelope_function, case_params, reach, apply_design)
 from symcushion.envelope.build import DEFAULT_CACHE, build_envelope, run_batch

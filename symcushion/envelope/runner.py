@@ -26,9 +26,9 @@ from symcushion.envelope.build import _dask_batch, _safe, build_envelope, DEFAUL
 from symcushion.envelope.cases import apply_design, case_params, initial_states, reach, SUMMARY
 from symcushion.envelope.classify import classify
 from symcushion.envelope.plots import plot_envelope
-from symcushion.envelope.sampling import sample_conditions
 from symcushion.envelope.statistics import EnvelopeResult
-from symcushion.envelope.study import _check_counts, _DEFAULTS, EnvelopeStudy, VARIABLES
+from symcushion.envelope.study import (_check_counts, _DEFAULTS, EnvelopeStudy, VARIABLES,
+                                       sample_conditions)
 
 __all__ = ["PROGRESS_INTERVAL", "PROGRESS_LOG_INTERVAL", "BATCH_DIR", "run_envelope", "evaluate",
            "write_result", "output_names"]

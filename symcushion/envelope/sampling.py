@@ -1,19 +1,14 @@
 """Sampling the touchdown conditions of a study.
 
-Owns the seeded scrambled Sobol sequence (or pseudo-random numbers) and the
-map from the unit cube to the study's ranges. It must not know the scene or
-the step: it returns conditions, never states.
+Owns the seeded scrambled Sobol sequence (or pseudo-random numbers) in the unit
+cube. It must not know a study, the scene or the step: the study maps the points
+to its ranges (:func:`symcushion.envelope.study.sample_conditions`).
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
-if TYPE_CHECKING:  # the study module imports this one
-    from symcushion.envelope.study import EnvelopeStudy
-
-__all__ = ["MAX_SOBOL_DIMENSIONS", "SOBOL_BITS", "sobol", "sample_unit", "sample_conditions"]
+__all__ = ["MAX_SOBOL_DIMENSIONS", "SOBOL_BITS", "sobol", "sample_unit"]
 
 #: Bits of the Sobol digits: 2^31 points per dimension before it repeats.
 SOBOL_BITS = 31
@@ -120,24 +115,9 @@ def sobol(n: int, dim: int, seed: int | None = 0, scramble: bool = True) -> np.n
     return (points.astype(np.float64) + 0.5) / 2.0 ** bits
 
 
-def sample_unit(study: EnvelopeStudy) -> np.ndarray:
-    """Uniform numbers in (0, 1), shape (n, d), one column per random condition."""
-    dim = sum(r.random for r in study.ranges.values())
-    if study.method == "sobol":
-        return sobol(study.n, dim, seed=study.seed)
-    return np.random.default_rng(study.seed).random((study.n, dim))
-
-
-def sample_conditions(study: EnvelopeStudy) -> dict:
-    """The sampled touchdown conditions: a dict of arrays of shape (n,), by ``VARIABLES``."""
-    from symcushion.envelope.study import VARIABLES  # at call time: the study module imports this one
-    u = sample_unit(study)
-    out, col = {}, 0
-    for name in VARIABLES:
-        r = study.ranges[name]
-        if r.random:
-            out[name] = r.transform(u[:, col])
-            col += 1
-        else:
-            out[name] = r.transform(np.zeros(study.n))
-    return out
+def sample_unit(method: str, n: int, dim: int, seed: int) -> np.ndarray:
+    """Uniform numbers in (0, 1), shape (n, dim): the scrambled Sobol' points of
+    :func:`sobol` for ``method = "sobol"``, else NumPy's generator of ``seed``."""
+    if method == "sobol":
+        return sobol(n, dim, seed=seed)
+    return np.random.default_rng(seed).random((n, dim))

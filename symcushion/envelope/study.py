@@ -20,11 +20,11 @@ import numpy as np
 from symcushion.model.obstacles import Plane
 from symcushion.model.scene import _Table, read_toml, scene_from_dict
 from symcushion.model.scene_data import Scene
-from symcushion.envelope.sampling import MAX_SOBOL_DIMENSIONS
+from symcushion.envelope.sampling import MAX_SOBOL_DIMENSIONS, sample_unit
 
 __all__ = ["VARIABLES", "MAX_SLOPE_DEG", "DEFAULT_BATCH", "DEFAULT_CLEARANCE", "DEFAULT_REST_SPEED",
            "Range", "Limits",
-           "EnvelopeStudy", "study_from_dict", "load_study"]
+           "EnvelopeStudy", "study_from_dict", "load_study", "sample_conditions"]
 
 #: Sampled touchdown conditions, in the order they take dimensions of the
 #: sequence (only those given as a range or distribution take one). Angles in
@@ -211,6 +211,23 @@ class EnvelopeStudy:
         new = dataclasses.replace(self, **changes)
         _check_counts(new)
         return new
+
+
+def sample_conditions(study: EnvelopeStudy) -> dict:
+    """The sampled touchdown conditions: a dict of arrays of shape (n,), by
+    :data:`VARIABLES`; each random range takes the next column of the study's
+    points in the unit cube, a fixed one its value."""
+    dim = sum(r.random for r in study.ranges.values())
+    u = sample_unit(study.method, study.n, dim, study.seed)
+    out, col = {}, 0
+    for name in VARIABLES:
+        r = study.ranges[name]
+        if r.random:
+            out[name] = r.transform(u[:, col])
+            col += 1
+        else:
+            out[name] = r.transform(np.zeros(study.n))
+    return out
 
 
 def _check_counts(study):

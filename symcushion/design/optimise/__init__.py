@@ -38,7 +38,8 @@ curves are tuned here) and §3 (the touchdown simulation differentiated here).
 """
 from symcushion.design.optimise.spec import (OBJECTIVES, VIOLATION_TOL, Scenario, DesignVariable,
     CurveShape, Limits, Evaluation)
-from symcushion.design.optimise.space import ONSET_SLOPE_FRACTION, SHAPE_GRID
+from symcushion.design.optimise.space import ONSET_SLOPE_FRACTION
+from symcushion.design.optimise.shape_points import SHAPE_GRID
 from symcushion.design.optimise.gradient import FD_STEP, ROW_FLOOR, FD_AGREEMENT
 from symcushion.design.optimise.problem import (IPOPT_DEFAULTS, FEASIBLE_SCALE_MAX,
     FEASIBLE_BISECTIONS, FEASIBLE_MARGIN, DesignProblem)

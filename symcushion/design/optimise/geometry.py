@@ -30,6 +30,7 @@ from typing import Sequence
 import casadi as ca
 import numpy as np
 
+from symcushion.design.optimise.shape_points import branch_rate, shape_points
 from symcushion.scheme.layout import state_layout
 from symcushion.scheme.quaternion import quat_to_rot, quat_to_rot_np
 from symcushion.model.obstacles import closest_obstacle
@@ -406,7 +407,6 @@ class _GeometryDesign:
 
     def _add_mass_rows(self, j, leg, length, p, add):
         """L₀ · sign(x)·f_L(x) ≤ leg_mass at every check point of leg j's axial curve."""
-        from symcushion.design.optimise.space import _check_points, _rate
         element = next((el for el in leg.elements if el.name == "S"), None)
         if element is None or leg.rigid:
             return
@@ -416,10 +416,10 @@ class _GeometryDesign:
             th = ca.vertcat(*[p[self.param_names.index(f"leg{j}.S.{n}")]
                               for n in curve.param_names])
         extent = self.limits.stroke
-        for x in _check_points(curve, extent):
+        for x in shape_points(curve, extent):
             if x == 0:
                 continue
-            force = float(np.sign(x)) * curve.force(float(x), _rate(curve, float(x), True), th)
+            force = float(np.sign(x)) * curve.force(float(x), branch_rate(curve, float(x), True), th)
             add(length * force, "leg_mass", self.practical.leg_mass, -math.inf, 1.0, "N·m",
                 leg=j, label=f"L₀ × axial loading force at x = {x:.4g}")
 

@@ -286,6 +286,26 @@ class DesignProblem(_DesignSpace, _Constraints, _GradientCheck):
                 f"{b.unit}, {bound} {b.unit}")
 
     # -- solving ------------------------------------------------------------------
+    def result_record(self, theta, theta0, objective: float) -> dict:
+        """What a :class:`DesignResult` writes of this problem at the optimum
+        ``theta`` and the start ``theta0``: bounds, named ``p``, characteristics,
+        limits and, when the geometry is designed or limited, the geometry at both
+        and each practical-limit row's value at the optimum."""
+        record = dict(
+            bounds={n: [lo, hi] for n, lo, hi in zip(self.var_names, self.lower, self.upper)},
+            p={n: float(v) for n, v in zip(self.param_names, self.p_of(theta))},
+            characteristic=self.characteristics(theta),
+            initial_characteristic=self.characteristics(theta0),
+            limits=dict(self.limits.__dict__))
+        if getattr(self, "_frames", None) is not None:
+            _, g = self.fg(self.scaled(theta, t=objective))
+            record["geometry"] = dict(start=self.geometry_report(theta0),
+                                      end=self.geometry_report(theta))
+            record["practical"] = [dict(kind=b.kind, leg=b.leg, label=b.label, unit=b.unit,
+                                        values=(g[b.start:b.stop] * b.scale).tolist())
+                                   for b in self.blocks if b.kind in PRACTICAL_KINDS]
+        return record
+
     def feasible_start(self, theta=None, progress=False):
         """The design c·θ with the smallest c ≥ 1 that meets every limit.
 
@@ -410,7 +430,7 @@ class DesignProblem(_DesignSpace, _Constraints, _GradientCheck):
                 entry[key] = float(value)
         status = stats.get("return_status", "unknown")
         return DesignResult(
-            problem=self, theta=theta, theta0=theta0, evaluation=evaluation,
+            theta=theta, theta0=theta0, evaluation=evaluation,
             initial=self.evaluate(theta0), return_status=status,
             success=bool(stats.get("success", False)), iterations=int(stats.get("iter_count", 0)),
             history=history,
@@ -420,5 +440,8 @@ class DesignProblem(_DesignSpace, _Constraints, _GradientCheck):
                          jacobian_evaluations=int(stats.get("n_call_nlp_jac_g", 0)),
                          constraint_wall_seconds=float(stats.get("t_wall_nlp_g", math.nan)),
                          constraint_evaluations=int(stats.get("n_call_nlp_g", 0)), **build),
+            var_names=tuple(self.var_names), p=self.p_of(theta),
+            objective_kind=self.objective_kind,
+            record=self.result_record(theta, theta0, evaluation.objective),
             meta=dict(start_scale=scale_c,
                       start_design=dict(zip(self.var_names, map(float, theta_start)))))

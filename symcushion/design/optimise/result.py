@@ -1,22 +1,17 @@
 """The result of a design: optimum, characteristics, report and JSON.
 
-Owns :class:`DesignResult`. It must not solve or evaluate.
+Owns :class:`DesignResult`, plain data the problem's solve fills in (it keeps no
+reference to the problem). It must not solve or evaluate.
 """
 from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
-
 import numpy as np
 
 from symcushion.run.output_files import atomic_write_text, jsonable
-from symcushion.design.optimise.geometry import PRACTICAL_KINDS
 from symcushion.design.optimise.spec import Evaluation
-
-if TYPE_CHECKING:  # the problem module imports this one
-    from symcushion.design.optimise.problem import DesignProblem
 
 __all__ = ["DesignResult"]
 
@@ -43,9 +38,20 @@ class DesignResult:
         Ipopt's inf_pr, inf_du, mu.
     timings : dict
         build_seconds, solve_seconds, Ipopt's wall time and Jacobian time.
+    var_names : tuple of str
+        Names of the design values, in the order of ``theta``.
+    p : ndarray
+        Full parameter vector (the problem's ``param_names``) of the optimum.
+    objective_kind : str
+        ``"peak_deceleration"`` or the problem's other objective.
+    record : dict
+        What the problem says of the start and the optimum for the JSON file:
+        bounds, named ``p``, characteristics, limits and, when the geometry is
+        designed or limited, the geometry and its practical-limit rows.
+    meta : dict
+        The study's name and the start's scale and design.
     """
 
-    problem: DesignProblem
     theta: np.ndarray
     theta0: np.ndarray
     evaluation: Evaluation
@@ -55,24 +61,23 @@ class DesignResult:
     iterations: int
     history: list
     timings: dict
+    var_names: tuple
+    p: np.ndarray
+    objective_kind: str
+    record: dict = field(default_factory=dict)
     meta: dict = field(default_factory=dict)
 
     @property
     def design(self) -> dict:
-        return dict(zip(self.problem.var_names, map(float, self.theta)))
-
-    @property
-    def p(self) -> np.ndarray:
-        """Full parameter vector (``problem.param_names``) of the optimum."""
-        return self.problem.p_of(self.theta)
+        return dict(zip(self.var_names, map(float, self.theta)))
 
     @property
     def message(self) -> str:
         """One paragraph: status, objective and any violated constraints."""
         ev = self.evaluation
-        unit = "m/s²" if self.problem.objective_kind == "peak_deceleration" else "m"
+        unit = "m/s²" if self.objective_kind == "peak_deceleration" else "m"
         text = (f"Ipopt {self.return_status} after {self.iterations} iterations: "
-                f"{self.problem.objective_kind} {ev.objective:.6g} {unit} "
+                f"{self.objective_kind} {ev.objective:.6g} {unit} "
                 f"(initial {self.initial.objective:.6g} {unit})")
         if ev.violations:
             text += "; the design is infeasible:\n  " + "\n  ".join(ev.violations[:_REPORT_WORST])
@@ -88,10 +93,10 @@ class DesignResult:
         return min(values) if values else None
 
     def to_dict(self) -> dict:
-        pb = self.problem
+        rec = self.record
         return jsonable(dict(
             study=self.meta.get("name"),
-            objective_kind=pb.objective_kind,
+            objective_kind=self.objective_kind,
             objective=self.evaluation.objective,
             initial_objective=self.initial.objective,
             efficiency=self.efficiency,
@@ -102,31 +107,17 @@ class DesignResult:
             feasible=self.evaluation.feasible,
             violations=self.evaluation.violations,
             design=self.design,
-            initial_design=dict(zip(pb.var_names, map(float, self.theta0))),
-            bounds={n: [lo, hi] for n, lo, hi in zip(pb.var_names, pb.lower, pb.upper)},
-            p={n: float(v) for n, v in zip(pb.param_names, self.p)},
-            characteristic=pb.characteristics(self.theta),
-            initial_characteristic=pb.characteristics(self.theta0),
+            initial_design=dict(zip(self.var_names, map(float, self.theta0))),
+            bounds=rec["bounds"], p=rec["p"],
+            characteristic=rec["characteristic"],
+            initial_characteristic=rec["initial_characteristic"],
             scenarios=self.evaluation.scenarios,
             initial_scenarios=self.initial.scenarios,
-            limits=pb.limits.__dict__,
+            limits=rec["limits"],
             timings=self.timings,
             history=self.history,
-            **self._geometry(),
+            **{k: rec[k] for k in ("geometry", "practical") if k in rec},
             **{k: v for k, v in self.meta.items() if k != "name"}))
-
-    def _geometry(self) -> dict:
-        """``geometry`` (the legs' geometry at the start and the optimum) and
-        ``practical`` (each practical-limit row's value there), when designed or limited."""
-        pb = self.problem
-        if getattr(pb, "_frames", None) is None:
-            return {}
-        _, g = pb.fg(pb.scaled(self.theta, t=self.evaluation.objective))
-        rows = [dict(kind=b.kind, leg=b.leg, label=b.label, unit=b.unit,
-                     values=(g[b.start:b.stop] * b.scale).tolist())
-                for b in pb.blocks if b.kind in PRACTICAL_KINDS]
-        return dict(geometry=dict(start=pb.geometry_report(self.theta0),
-                                  end=pb.geometry_report(self.theta)), practical=rows)
 
     def save_json(self, path):
         """Write :meth:`to_dict` as JSON (NaN and inf written as null)."""

@@ -22,9 +22,10 @@ import numpy as np
 from symcushion.legs.characteristics import PiecewiseLinear
 from symcushion.legs.curve_base import Curve
 from symcushion.design.optimise.geometry import _GeometryDesign
+from symcushion.design.optimise.shape_points import branch_rate, shape_points
 from symcushion.design.optimise.spec import _real, CurveShape, DesignVariable
 
-__all__ = ["ONSET_SLOPE_FRACTION", "SHAPE_GRID"]
+__all__ = ["ONSET_SLOPE_FRACTION"]
 
 #: Default lower bound on the slope of a tuned loading curve next to zero
 #: deflection, as a fraction of the initial curve's slope there. A curve that
@@ -34,13 +35,6 @@ __all__ = ["ONSET_SLOPE_FRACTION", "SHAPE_GRID"]
 #: starting stiffness keeps well away from that edge and is not active at the
 #: optima measured here.
 ONSET_SLOPE_FRACTION = 0.1
-#: Number of check points per side of zero for shape constraints of curves
-#: without knots (linear, crushable), on [−range, range].
-SHAPE_GRID = 8
-#: x·ẋ used to select a single branch of a curve when evaluating its shape,
-#: in units of the curve's ``rate_width``: tanh(50) = 1 to double precision,
-#: so a smooth curve then returns exactly its loading or unloading branch.
-_BRANCH_SELECT = 50.0
 
 
 class _DesignSpace(_GeometryDesign):
@@ -169,8 +163,8 @@ class _DesignSpace(_GeometryDesign):
             th = ca.vertcat(*[p[k] for k in idx])
             th0 = self.p_of(self.initial)[idx]
             where = f"leg{j}.{name}"
-            points = _check_points(curve, ranges.get(name))
-            force_scale = max(float(np.max(np.abs([curve.force(x, _rate(curve, x, True), th0)
+            points = shape_points(curve, ranges.get(name))
+            force_scale = max(float(np.max(np.abs([curve.force(x, branch_rate(curve, x, True), th0)
                                                    for x in points]))), 1e-12)
             slopes, mids, onset = _loading_slopes(curve, th, points)
             if shape.monotone and slopes is not None:
@@ -194,8 +188,8 @@ class _DesignSpace(_GeometryDesign):
                 for x in points:
                     if x == 0:
                         continue
-                    gap = np.sign(x) * (curve.force(x, _rate(curve, x, True), th)
-                                        - curve.force(x, _rate(curve, x, False), th))
+                    gap = np.sign(x) * (curve.force(x, branch_rate(curve, x, True), th)
+                                        - curve.force(x, branch_rate(curve, x, False), th))
                     add(gap, "shape", force_scale, 0.0, math.inf,
                         "N" if name == "S" else "N·m",
                         label=f"{where} unloading below loading at x = {x:.4g}")
@@ -210,37 +204,17 @@ class _DesignSpace(_GeometryDesign):
             th = p[idx]
             legs = [i for i, leg in enumerate(self.legs)
                     if any(el.curve is curve for el in leg.elements)]
-            points = [float(x) for x in _check_points(curve, ranges.get(name))]
+            points = [float(x) for x in shape_points(curve, ranges.get(name))]
             entry = dict(element=name, legs=legs, type=type(curve).__name__,
                          parameters={n: float(v) for n, v in zip(curve.param_names, th)},
                          x=points,
-                         loading=[float(curve.force(x, _rate(curve, x, True), th))
+                         loading=[float(curve.force(x, branch_rate(curve, x, True), th))
                                   for x in points])
             if curve.unloading is not None:
-                entry["unloading"] = [float(curve.force(x, _rate(curve, x, False), th))
+                entry["unloading"] = [float(curve.force(x, branch_rate(curve, x, False), th))
                                       for x in points]
             out[f"leg{j}.{name}"] = entry
         return out
-
-
-def _rate(curve: Curve, x: float, loading: bool):
-    """A rate that selects one branch of ``curve`` exactly at x ≠ 0."""
-    if x == 0:
-        return 0.0
-    magnitude = _BRANCH_SELECT * curve.rate_width / abs(x)
-    return float(np.sign(x)) * magnitude * (1.0 if loading else -1.0)
-
-
-def _check_points(curve: Curve, extent) -> np.ndarray:
-    """Where shape constraints are checked: knots, or a grid on [−extent, extent]."""
-    pts = []
-    for c in (curve, curve.unloading):
-        if isinstance(c, PiecewiseLinear):
-            pts += list(c.knots)
-    if not pts:
-        extent = 1.0 if extent is None else extent
-        pts = list(np.linspace(-extent, extent, 2 * SHAPE_GRID + 1))
-    return np.unique(np.asarray(pts, dtype=float))
 
 
 def _loading_slopes(curve: Curve, th, points):
@@ -262,7 +236,7 @@ def _loading_slopes(curve: Curve, th, points):
     pts = [x for x in points if x != 0]
     if not pts:
         return None, None, None
-    slopes = [curve.slope(x, _rate(curve, x, True), th) for x in pts]
+    slopes = [curve.slope(x, branch_rate(curve, x, True), th) for x in pts]
     pts = np.asarray(pts)
     onset = np.zeros(pts.size, dtype=bool)
     for side in (pts < 0, pts > 0):
