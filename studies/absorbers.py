@@ -38,7 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from symcushion.scheme.layout import output_layout, state_layout
+from symcushion.layout.vectors import output_layout, state_layout
 from symcushion.model.scene import load_scene, read_toml, scene_from_dict
 from symcushion.scheme.touchdown import build_model, initial_state
 

@@ -43,7 +43,7 @@ import numpy as np
 
 from symcushion.envelope import (case_params, evaluate, initial_states, load_study,
     sample_conditions, study_from_dict, wilson_interval)
-from symcushion.scheme.layout import state_layout
+from symcushion.layout.vectors import state_layout
 from symcushion.model.scene import read_toml
 from symcushion.scheme.touchdown import build_model
 

@@ -26,7 +26,7 @@ import numpy as np
 
 from symcushion import build_model, load_scene, simulate
 from symcushion.run.error_control import COMPANIONS, PEAKS, estimate_report
-from symcushion.scheme.layout import state_layout
+from symcushion.layout.vectors import state_layout
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = ("studies/lunar_lander300.toml", "studies/lander_slope.toml",

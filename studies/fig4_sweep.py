@@ -59,7 +59,7 @@ from pathlib import Path
 import numpy as np
 
 from symcushion.legs.characteristics import Linear
-from symcushion.scheme.layout import state_layout
+from symcushion.layout.vectors import state_layout
 from symcushion.contact.args import METHODS
 from symcushion.model.scene import load_scene, symmetric_legs
 from symcushion.scheme.touchdown import build_model, initial_state

@@ -36,7 +36,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from absorbers import rollout  # noqa: E402  (studies/absorbers.py, beside this file)
-from symcushion.scheme.layout import output_layout, state_layout  # noqa: E402
+from symcushion.layout.vectors import output_layout, state_layout  # noqa: E402
 from symcushion.run.output_files import replacing  # noqa: E402
 from symcushion.model.scene import load_scene  # noqa: E402
 

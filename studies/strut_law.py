@@ -36,7 +36,7 @@ import numpy as np
 from symcushion import HingedStrut, Linear
 from symcushion.envelope.cases import case_params, initial_states
 from symcushion.envelope.study import load_study
-from symcushion.scheme.layout import output_layout, state_layout
+from symcushion.layout.vectors import output_layout, state_layout
 from symcushion.scheme.quaternion import tilt_np
 from symcushion.model.obstacles import Plane
 from symcushion.model.scene import Scene, load_scene, symmetric_legs

@@ -14,7 +14,7 @@ from symcushion.contact.solve import solve_contact
 from symcushion.contact.args import METHODS
 from symcushion.contact.dispatch import contact_step
 from symcushion.run.driver import Trajectory, save, simulate
-from symcushion.scheme.layout import MODES, output_columns, state_columns
+from symcushion.layout.vectors import MODES, output_columns, state_columns
 from symcushion.scheme.measures import measures_function
 from symcushion.model.obstacles import ImplicitSurface, Plane, Sphere, Terrain
 from symcushion.model.scene import load_scene, scene_from_dict

@@ -237,7 +237,7 @@ def _cmd_plot(args):
 
 
 def _cmd_check(args):
-    from symcushion.run.checks import check_file
+    from symcushion.check_files import check_file
     from symcushion.model.scene import read_toml
 
     stdin = str(args.scene) == "-"

@@ -7,7 +7,7 @@ import pytest
 
 from symcushion.legs import absorber
 from symcushion.legs.characteristics import Crushable, Linear, PiecewiseLinear
-from symcushion.scheme.layout import output_layout, state_layout
+from symcushion.layout.vectors import output_layout, state_layout
 from symcushion.model.scene import load_scene, read_toml, scene_from_dict
 from symcushion.scheme.touchdown import build_model, initial_state
 

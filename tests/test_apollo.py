@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from symcushion.compiled import codegen
-from symcushion.scheme.layout import output_layout
+from symcushion.layout.vectors import output_layout
 from symcushion.model.scene import load_scene
 from symcushion.scheme.touchdown import build_model, initial_state
 from symcushion.run.driver import simulate

@@ -15,9 +15,8 @@ from symcushion.run.checks import PhysicsWarning, RunMonitor, check_scene
 from symcushion.cli import main
 from symcushion.model.scene import Scene, load_scene, scene_from_dict
 from symcushion.run.driver import simulate
-from symcushion.model.validation import (SceneError, boolean, choice, direction, integer, real,
-    vector)
-from symcushion.model.validation import path as validate_path
+from symcushion.validation import SceneError, boolean, choice, direction, integer, real, vector
+from symcushion.validation import path as validate_path
 
 if sys.version_info >= (3, 11):
     import tomllib

@@ -5,7 +5,7 @@ import pytest
 
 from symcushion.scheme.body_step import (BodyParams, body_acceleration, drift, half_kick,
     legs_wrench)
-from symcushion.scheme.layout import output_layout, state_layout
+from symcushion.layout.vectors import output_layout, state_layout
 from symcushion.scheme.quaternion import quat_from_axis_angle_np, quat_to_rot_np
 from symcushion.scheme.touchdown import build_model, initial_state
 from symcushion.scheme.stability import body_stiffness, stable_dt

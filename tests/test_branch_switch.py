@@ -19,7 +19,7 @@ import pytest
 
 import symcushion.scheme.touchdown_events as touchdown
 from symcushion.design.optimise import study_from_dict
-from symcushion.scheme.layout import state_layout
+from symcushion.layout.vectors import state_layout
 from symcushion.model.scene import SceneError, load_scene, read_toml, scene_from_dict
 from symcushion.scheme.touchdown import build_model, initial_state
 from symcushion.run.driver import simulate

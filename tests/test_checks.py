@@ -11,10 +11,10 @@ from symcushion.run.checks import (BODY_TOLERANCE, START_TOLERANCE, Finding, Phy
     RunMonitor, check_scene, preflight)
 from symcushion.run.monitor import DEFAULT_TOLERANCES
 from symcushion.model.scene import load_scene, scene_from_dict
-from symcushion.scheme.layout import BODY_STATE, LEG_STATE
+from symcushion.layout.vectors import BODY_STATE, LEG_STATE
 from symcushion.scheme.touchdown import build_model, initial_state
 from symcushion.run.driver import simulate
-from symcushion.model.validation import SceneError
+from symcushion.validation import SceneError
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = ("fig3.toml", "fig4.toml", "lander_slope.toml")
@@ -165,7 +165,7 @@ def test_negative_slope_away_from_rest_is_a_warning():
     scene = fig3()
     data = {"type": "piecewise", "x": [-1.0, 0.0, 0.5, 1.0], "f": [-1200.0, 0.0, 600.0, 300.0]}
     from symcushion.model.scene import _curve
-    from symcushion.model.validation import Table
+    from symcushion.validation import Table
     curve = _curve(Table(data, "legs.M_beta", "test"))
     legs = [type(leg)(leg.hinge, leg.e0, leg.en, leg.length, M_beta=curve,
                       M_gamma=leg.elements[-1].curve) for leg in scene.legs]

@@ -20,7 +20,7 @@ from symcushion.contact.dispatch import contact_step
 from symcushion.contact.midpoint import THETA_SERIES, _build, fitted_theta
 from symcushion.design.optimise import study_from_dict
 from symcushion.model.scene import SceneError, load_scene, read_toml, scene_from_dict
-from symcushion.scheme.layout import output_layout, state_layout
+from symcushion.layout.vectors import output_layout, state_layout
 from symcushion.scheme.touchdown import build_model, initial_state
 from symcushion.run.driver import simulate
 

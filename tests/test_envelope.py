@@ -407,7 +407,7 @@ def test_mu_sampled_continuously_from_one_library(raw, study, cache):
     assert continuous.ranges["mu"].kind == "uniform"
     mu = ev.sample_conditions(continuous)["mu"]
     assert len(np.unique(mu)) == 16 and np.all((mu >= 0.1) & (mu <= 0.9))
-    libraries = ev._libraries(continuous, mu, cache, progress=False)
+    libraries = ev.case_libraries(continuous, mu, cache, progress=False)
     assert list(libraries) == [True]                   # one friction library for every μ
     result = ev.run_envelope(continuous, threads=1, cache_dir=cache, progress=False)
     cond = result.conditions

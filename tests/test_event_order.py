@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from symcushion.scheme.layout import state_layout
+from symcushion.layout.vectors import state_layout
 from symcushion.model.scene import read_toml, scene_from_dict
 from symcushion.scheme.touchdown import build_model
 from symcushion.run.driver import simulate

@@ -24,7 +24,7 @@ from symcushion.compiled.cbuild import find_compiler
 from symcushion.legs.characteristics import Crushable, Linear
 from symcushion.compiled.fmu import build_fmu, held_input_step
 from symcushion.compiled.fmu_variables import fmu_variables, model_description, variables_markdown
-from symcushion.scheme.layout import output_layout, state_layout
+from symcushion.layout.vectors import output_layout, state_layout
 from symcushion.model.scene import Body, Scene, symmetric_legs
 from symcushion.model.obstacles import Plane
 

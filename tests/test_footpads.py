@@ -14,7 +14,7 @@ import pytest
 from symcushion.legs.characteristics import Linear
 from symcushion.run.checks import FOOTPAD_FRACTION, check_scene
 from symcushion.run.driver import simulate
-from symcushion.scheme.layout import output_layout, state_layout
+from symcushion.layout.vectors import output_layout, state_layout
 from symcushion.model.obstacles import ImplicitSurface, Plane, Sphere, Terrain
 from symcushion.model.scene import Body, Scene, scene_from_dict
 from symcushion.legs.strut import HingedStrut

@@ -21,7 +21,7 @@ from symcushion.design.robust import EnvelopeDesign
 from symcushion.design.robust.study import robust_study_from_dict
 from symcushion.model.scene import read_toml
 from symcushion.scheme.touchdown import build_model, initial_state
-from symcushion.scheme.layout import state_layout
+from symcushion.layout.vectors import state_layout
 
 from test_robust import TINY
 

@@ -15,7 +15,7 @@ import pytest
 
 import symcushion as sc
 from symcushion import Linear
-from symcushion.scheme.layout import state_layout
+from symcushion.layout.vectors import state_layout
 from symcushion.model.obstacles import Plane
 from symcushion.model.scene import Body, Scene, symmetric_legs
 from symcushion.scheme.touchdown import build_model, initial_state

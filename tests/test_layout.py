@@ -1,10 +1,10 @@
-"""Tests of symcushion.scheme.layout: field tables, pack/unpack, CSV names, quaternions."""
+"""Tests of symcushion.layout.vectors: field tables, pack/unpack, CSV names, quaternions."""
 import casadi as ca
 import numpy as np
 import pytest
 
-from symcushion.scheme import layout
-from symcushion.scheme.layout import output_columns, output_layout, state_columns, state_layout
+from symcushion.layout import vectors as layout
+from symcushion.layout.vectors import output_columns, output_layout, state_columns, state_layout
 from symcushion.scheme.quaternion import (quat_exp, quat_from_axis_angle_np, quat_mul,
     quat_mul_np, quat_to_rot, quat_to_rot_np, tilt, tilt_np)
 
@@ -17,9 +17,7 @@ def _random_quats(rng, n):
 
 
 def test_block_sizes_and_reexport():
-    import symcushion.simulate  # noqa: F401  (the compatibility module)
-    import sys
-    sim = sys.modules["symcushion.simulate"]
+    import symcushion.layout as sim  # the folder re-exports the layouts of x and y
     assert (layout.BODY_STATE, layout.LEG_STATE, layout.BODY_OUT, layout.LEG_OUT) == (13, 13, 3, 19)
     assert (sim.BODY_STATE, sim.LEG_STATE, sim.BODY_OUT, sim.LEG_OUT) == (13, 13, 3, 19)
     assert sim.MODES == {0: "free", 1: "stick", 2: "slip", 3: "lift-off"}

@@ -3,7 +3,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from symcushion.scheme.layout import output_layout, state_layout
+from symcushion.layout.vectors import output_layout, state_layout
 from symcushion.scheme.quaternion import quat_from_axis_angle_np
 from symcushion.scheme.measures import MEASURES, measures_function, support_edges
 from symcushion.scheme.touchdown import build_model, initial_state

@@ -14,7 +14,7 @@ from symcushion.model.obstacles import Plane
 from symcushion.run.results import (JSON_NAME, UNITS, ResultWriter, check_out_dir, column_unit,
     result_dir, trajectory_columns)
 from symcushion.model.scene import Body, Scene, load_scene
-from symcushion.scheme.layout import BODY_OUT, BODY_STATE, LEG_OUT, LEG_STATE
+from symcushion.layout.vectors import BODY_OUT, BODY_STATE, LEG_OUT, LEG_STATE
 from symcushion.scheme.touchdown import build_model
 from symcushion.legs.strut import HingedStrut
 

@@ -171,7 +171,7 @@ def test_margins_bound_the_envelope_extrema_from_above(run):
 def test_the_at_rest_margin_is_the_mean_motion_over_the_window(tmp_path):
     """The 'moving' ratio is the mean of (|v| + |ω|·reach)/rest_speed over the last
     REST_WINDOW of the horizon: checked against the rollout's states on the VM."""
-    from symcushion.scheme.layout import state_layout
+    from symcushion.layout.vectors import state_layout
     from symcushion.design.robust.evaluate import build_margins
     from symcushion.design.robust.margins import REST_WINDOW
     from symcushion.scheme.touchdown import build_model

@@ -182,7 +182,7 @@ def test_a_frictionless_foot_on_a_curved_obstacle_is_pushed_along_its_final_norm
     """The force found on the tangent plane at the predicted end point is turned onto the
     plane at the foot's final point: normal there to round-off (a force left along the
     predicted normal works on the foot's slide and loses energy at first order)."""
-    from symcushion.scheme.layout import output_layout, state_layout
+    from symcushion.layout.vectors import output_layout, state_layout
     from symcushion.model.obstacles import closest_obstacle
     from symcushion.scheme.touchdown import build_model, initial_state
     scene = _shifted_dome(1e-3)

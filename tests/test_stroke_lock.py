@@ -20,7 +20,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from symcushion.scheme.layout import state_layout
+from symcushion.layout.vectors import state_layout
 from symcushion.scheme.quaternion import quat_to_rot_np
 from symcushion.model.scene import load_scene, read_toml, scene_from_dict
 from symcushion.scheme.touchdown import build_model, initial_state

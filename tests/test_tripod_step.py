@@ -7,7 +7,7 @@ import pytest
 from scipy.optimize import brentq
 
 from symcushion.legs.characteristics import Crushable, Linear, TwoSided
-from symcushion.scheme.layout import output_layout, state_layout
+from symcushion.layout.vectors import output_layout, state_layout
 from symcushion.model.obstacles import Plane
 from symcushion.model.scene import Body, Scene, load_scene
 from symcushion.scheme.touchdown import build_model, initial_state

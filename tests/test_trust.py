@@ -381,7 +381,7 @@ def test_an_unstable_step_suggests_the_cli_options_and_stability_runs(tmp_path, 
 
 
 def test_the_energy_growth_message_names_one_time_and_the_cli_options():
-    from symcushion.scheme.layout import state_layout
+    from symcushion.layout.vectors import state_layout
     from symcushion.run.monitor import RunMonitor
     from symcushion.model.scene import load_scene
     from symcushion.scheme.touchdown import initial_state

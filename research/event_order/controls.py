@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from symcushion.compiled.codegen import compiled_model
-from symcushion.scheme.layout import state_layout
+from symcushion.layout.vectors import state_layout
 from symcushion.model.scene import read_toml, scene_from_dict
 from symcushion.scheme.touchdown import build_model, equilibrium_state
 from symcushion.run.driver import simulate

@@ -3,7 +3,7 @@
 This module owns how symcushion turns generated C into a shared library or a
 program: the ``casadi.CodeGenerator`` options, the gcc flags and why each is
 there, the fingerprint of a build (sources, flags, compiler), the parallel
-gcc runs of a build folder (``_build``), and the one generate-fingerprint-
+gcc runs of a build folder (``build_sources``), and the one generate-fingerprint-
 compile cache (:func:`compile_cached`) that the envelope and the compiled
 design share. It must not decide which Functions are generated or write
 their header (``symcushion.compiled.codegen`` does), and it loads nothing.
@@ -104,7 +104,7 @@ def find_compiler() -> str | None:
     return shutil.which(cc)
 
 
-def _fingerprint(paths, flags) -> str:
+def build_fingerprint(paths, flags) -> str:
     h = hashlib.sha256()
     for p in paths:
         h.update(Path(p).name.encode())
@@ -128,7 +128,7 @@ def _compile_commands(cc, out_dir: Path, sources: dict, with_program: bool):
     return cmds, link
 
 
-def _run_parallel(commands, seconds: dict, progress: bool):
+def run_parallel(commands, seconds: dict, progress: bool):
     """Run (label, argv) commands concurrently; raise with gcc's output on failure.
 
     Records each command's wall time in ``seconds``; returns what gcc printed,
@@ -154,7 +154,7 @@ def _run_parallel(commands, seconds: dict, progress: bool):
     return warnings
 
 
-def _build(out: Path, sources: dict, with_program: bool, fingerprint: str,
+def build_sources(out: Path, sources: dict, with_program: bool, fingerprint: str,
            old: dict | None, progress: bool) -> dict:
     """Compile the sources unless ``old`` records a build of the same fingerprint."""
     library, program = out / LIBRARY, out / PROGRAM
@@ -169,8 +169,8 @@ def _build(out: Path, sources: dict, with_program: bool, fingerprint: str,
     cc = find_compiler()
     cmds, link = _compile_commands(cc, out, sources, with_program)
     seconds = {}
-    warnings = _run_parallel(cmds, seconds, progress)
-    warnings.update(_run_parallel(link, seconds, progress))
+    warnings = run_parallel(cmds, seconds, progress)
+    warnings.update(run_parallel(link, seconds, progress))
     for label, err in warnings.items():
         print(f"gcc printed, compiling {label}:\n{err}", file=sys.stderr)
     if progress:

@@ -47,14 +47,14 @@ import casadi as ca
 import numpy as np
 
 from symcushion.compiled.cbuild import (CFLAGS, CODEGEN_OPTIONS, LIBRARY, MAIN, MANIFEST, PROGRAM,
-    WARNINGS, CachedBuild, _build, _fingerprint, compile_cached, find_compiler)
+    WARNINGS, CachedBuild, build_sources, build_fingerprint, compile_cached, find_compiler)
 from symcushion.compiled.codegen_hoist import hoisted_step
 from symcushion.compiled.codegen_load import build_program, load_compiled  # noqa: F401 (re-exports, docs/codegen.md)
 from symcushion.compiled.codegen_sources import (Signature, generate_source, loop_rollout,
     manifest_entry, rollout_source, write_header, write_scene_data)
 from symcushion.contact.args import METHODS
 from symcushion.contact.dispatch import contact_step
-from symcushion.scheme.layout import param_layout
+from symcushion.layout.vectors import param_layout
 from symcushion.run.results import check_out_dir
 from symcushion.model.scene import Scene, load_scene
 from symcushion.scheme.touchdown import StepModel, build_model
@@ -308,12 +308,12 @@ def generate(out_dir, scene=None, build: bool = False, steps: int | None = None,
 
     manifest_path = out / MANIFEST
     flags = {name: list(CFLAGS) + list(WARNINGS) for name in sources}
-    fingerprint = _fingerprint(list(sources.values()) + extra,
+    fingerprint = build_fingerprint(list(sources.values()) + extra,
                                [f"{k}:{' '.join(v)}" for k, v in sorted(flags.items())])
     old = json.loads(manifest_path.read_text()) if manifest_path.is_file() else {}
     record = old.get("build")
     if build:
-        record = _build(out, sources, scene is not None, fingerprint, record, progress)
+        record = build_sources(out, sources, scene is not None, fingerprint, record, progress)
 
     manifest = {
         "casadi": ca.__version__,

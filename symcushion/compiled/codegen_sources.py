@@ -23,7 +23,7 @@ import numpy as np
 
 from symcushion.compiled.cbuild import CODEGEN_OPTIONS, TARGET_CLONES
 from symcushion.compiled.codegen_hoist import CORE, PARAMETRIC
-from symcushion.scheme.layout import default_p, state_columns
+from symcushion.layout.vectors import default_p, state_columns
 from symcushion.model.scene import Scene
 from symcushion.scheme.touchdown import StepModel, initial_state
 
@@ -240,7 +240,7 @@ extern "C" {{
 
 def write_scene_data(out_dir: Path, scene: Scene, model: StepModel, steps: int) -> Path:
     """Write ``scene_data.h``, the scene's x0, p, dt, N and state names for ``main.c``."""
-    # the standalone program's CSV columns: the names of symcushion.scheme.layout, as in
+    # the standalone program's CSV columns: the names of symcushion.layout.vectors, as in
     # the trajectory.csv of `symcushion simulate`
     names = state_columns(len(scene.legs))
     x0 = initial_state(scene)

@@ -35,12 +35,12 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from symcushion.compiled.cbuild import (CFLAGS, CODEGEN_OPTIONS, WARNINGS, _run_parallel,
+from symcushion.compiled.cbuild import (CFLAGS, CODEGEN_OPTIONS, WARNINGS, run_parallel,
     find_compiler)
 from symcushion.compiled.codegen_sources import c_string
 from symcushion.compiled.fmu_variables import (ENERGY_FIELDS, INPUTS, KINDS, fmu_variables,
     model_description)
-from symcushion.scheme.layout import output_layout, state_layout
+from symcushion.layout.vectors import output_layout, state_layout
 from symcushion.scheme.quaternion import quat_to_rot_np
 from symcushion.run.output_files import check_output_file, replacing
 from symcushion.model.scene import load_scene
@@ -185,8 +185,8 @@ def _compile(folder: Path, library: Path, progress: bool) -> dict:
                                     "-c", str(folder / source), "-o", str(obj)]))
         objects.append(str(obj))
     seconds = {}
-    warnings = _run_parallel(commands, seconds, progress)
-    warnings.update(_run_parallel([(library.name, [cc, "-shared", *objects, "-o", str(library),
+    warnings = run_parallel(commands, seconds, progress)
+    warnings.update(run_parallel([(library.name, [cc, "-shared", *objects, "-o", str(library),
                                                    "-lm"])], seconds, progress))
     if warnings:
         raise RuntimeError("gcc printed warnings building the FMU (the build must be clean):\n"

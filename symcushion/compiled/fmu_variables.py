@@ -2,7 +2,7 @@
 
 This module owns the FMU's interface to an importer: the parameters, inputs,
 outputs and energy totals with their value references, units and meanings
-(:func:`fmu_variables`, named as the columns of ``symcushion.scheme.layout``), their
+(:func:`fmu_variables`, named as the columns of ``symcushion.layout.vectors``), their
 table for the docs (:func:`variables_markdown`) and the FMI 2.0
 Co-Simulation model description (:func:`model_description`). It must not
 generate or compile code or build the archive: that is :mod:`symcushion.compiled.fmu`.
@@ -17,17 +17,17 @@ from dataclasses import dataclass
 import casadi as ca
 
 from symcushion import __version__
-from symcushion.scheme.layout import (BODY_OUT_FIELDS, BODY_STATE_FIELDS, MODES, output_layout,
+from symcushion.layout.vectors import (BODY_OUT_FIELDS, BODY_STATE_FIELDS, MODES, output_layout,
     state_layout)
-from symcushion.scheme.layout_params import (FOOTPAD_FIELD, LEG_GEOMETRY_FIELDS,
-    SCENE_PARAM_FIELDS, TRIPOD_GEOMETRY_FIELDS)
+from symcushion.layout.params import (FOOTPAD_FIELD, LEG_GEOMETRY_FIELDS, SCENE_PARAM_FIELDS,
+    TRIPOD_GEOMETRY_FIELDS)
 from symcushion.scheme.touchdown import StepModel
 
 __all__ = ["INPUTS", "KINDS", "ENERGY_FIELDS", "FmuVariable", "fmu_variables",
            "variables_markdown", "model_description"]
 
 #: The inputs: a force and a torque on the body, world frame, held over a
-#: communication step. Named as the columns of symcushion.scheme.layout
+#: communication step. Named as the columns of symcushion.layout.vectors
 #: (``{owner}_{field}_{axis}_{unit}``); ``N_m`` is N·m.
 INPUTS = (("external_force", "N", "external force on the body (thrust, wind, a tether), "
            "world frame, through the centre of mass, held over a communication step"),
@@ -56,7 +56,7 @@ _SLOPE_PARAMS = ("k", "plateau_slope")
 #: Where a Real variable lives in the wrapper (the C enum of fmu_model.h).
 KINDS = {"parameter": 0, "input": 1, "state": 2, "output": 3, "energy": 4}
 
-#: The per-step work of each leg (symcushion.scheme.layout) that the FMU sums over its
+#: The per-step work of each leg (symcushion.layout.vectors) that the FMU sums over its
 #: run into the outputs ``leg{j}_energy_{axial,bending,friction}_J``.
 ENERGY_FIELDS = ("work_axial", "work_bending", "work_friction")
 
@@ -64,7 +64,7 @@ ENERGY_FIELDS = ("work_axial", "work_bending", "work_friction")
 _BODY_STATE_OUT = tuple(f.name for f in BODY_STATE_FIELDS)
 _BODY_Y_OUT = tuple(f.name for f in BODY_OUT_FIELDS)
 _LEG_Y_OUT = ("stroke", "force", "mode")
-#: Leg outputs of integer type (codes of symcushion.scheme.layout.MODES).
+#: Leg outputs of integer type (codes of symcushion.layout.vectors.MODES).
 _INTEGER_OUT = ("mode",)
 #: Meanings that say more in an FMU than the layout's: the mode's codes, and the
 #: acceleration's share of the external force.
@@ -80,7 +80,7 @@ class FmuVariable:
     Attributes
     ----------
     name : str
-        The variable's name: a column of ``symcushion.scheme.layout`` for the
+        The variable's name: a column of ``symcushion.layout.vectors`` for the
         outputs, an entry of ``StepModel.param_names`` for the parameters.
     type : str
         ``"Real"`` or ``"Integer"``.
@@ -199,7 +199,7 @@ def fmu_variables(model: StepModel) -> list:
             what = field.replace("work_", "")
             add(f"leg{j}_energy_{what}_J", "Real", "output", "energy",
                 len(ENERGY_FIELDS) * j + k, "J", f"sum since the start of the steps' "
-                f"{field} (symcushion.scheme.layout): the energy the leg took "
+                f"{field} (symcushion.layout.vectors): the energy the leg took "
                 + ("by friction at its foot" if what == "friction" else
                    f"on its {what} element{'s' if what == 'bending' else ''}"))
     return out

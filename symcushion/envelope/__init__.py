@@ -15,8 +15,9 @@ Every case is the scene's ``touchdown_step`` with its conditions in the
 step's inputs (gravity and μ in ``p``), so one compiled Function serves a
 whole study; no physics is derived here (docs/envelope.md).
 """
-from symcushion.envelope.study import (sample_conditions, VARIABLES, MAX_SLOPE_DEG, DEFAULT_BATCH, DEFAULT_CLEARANCE,
-    DEFAULT_REST_SPEED, Range, Limits, EnvelopeStudy, study_from_dict, load_study)
+from symcushion.envelope.study import (sample_conditions, VARIABLES, MAX_SLOPE_DEG, DEFAULT_BATCH,
+    DEFAULT_CLEARANCE, DEFAULT_REST_SPEED, Range, Limits, EnvelopeStudy, study_from_dict,
+    load_study)
 from symcushion.envelope.sampling import SOBOL_BITS, sobol, sample_unit
 from symcushion.envelope.cases import (SUMMARY, DECEL_FILTER_TIME, initial_states,
     envelope_function, case_params, reach, apply_design)
@@ -26,8 +27,8 @@ from symcushion.envelope.statistics import CONFIDENCE, wilson_interval, Envelope
 from symcushion.envelope.runner import (PROGRESS_INTERVAL, PROGRESS_LOG_INTERVAL, run_envelope,
     evaluate, write_result)
 from symcushion.envelope.plots import LOGISTIC_RIDGE, plot_envelope
-from symcushion.envelope.runner import _libraries  # noqa: F401  (tests check one library serves every μ)
-from symcushion.scheme.layout import BODY_STATE, LEG_STATE  # noqa: F401  (kept importable from here)
+from symcushion.envelope.runner import case_libraries  # noqa: F401  (tests check one library serves every μ)
+from symcushion.layout.vectors import BODY_STATE, LEG_STATE  # noqa: F401  (kept importable from here)
 
 __all__ = ["VARIABLES", "MAX_SLOPE_DEG", "DEFAULT_BATCH", "DEFAULT_CLEARANCE", "DEFAULT_REST_SPEED",
            "Range", "Limits",

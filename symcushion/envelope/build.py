@@ -99,7 +99,7 @@ def build_envelope(scene: Scene, cache_dir=None, *, steps: int | None = None,
     n_steps = scene.steps if steps is None else steps
     cache = Path(DEFAULT_CACHE if cache_dir is None else cache_dir)
     key = _input_key(scene, n_steps)
-    entry = None if key is None else cache / _INDEX / f"{_safe(scene.name)}-{key[:32]}.json"
+    entry = None if key is None else cache / _INDEX / f"{safe_file_name(scene.name)}-{key[:32]}.json"
     if entry is not None and entry.is_file():
         try:
             library = cache / json.loads(entry.read_text())["library"]
@@ -111,7 +111,7 @@ def build_envelope(scene: Scene, cache_dir=None, *, steps: int | None = None,
     note = (f"envelope_case for '{scene.name}' (method {scene.method}, "
             f"{'μ an input' if scene.mu > 0 else 'frictionless'}, {n_steps} steps)")
     built = compile_cached(envelope_function(model, steps), _SOURCE, _LIBRARY, cache,
-                           _safe(scene.name), note=note if progress else None)
+                           safe_file_name(scene.name), note=note if progress else None)
     if built.fresh:
         (built.folder / _MANIFEST).write_text(json.dumps({
             "scene": scene.name, "method": scene.method, "friction": scene.mu > 0,
@@ -127,7 +127,7 @@ def build_envelope(scene: Scene, cache_dir=None, *, steps: int | None = None,
     return built.library
 
 
-def _safe(name: str) -> str:
+def safe_file_name(name: str) -> str:
     return "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in name) or "scene"
 
 
@@ -181,7 +181,7 @@ def run_batch(library, x0, p, dt, threads: int = 1) -> tuple:
     return np.asarray(x_end, dtype=float), np.asarray(summary, dtype=float)
 
 
-def _dask_batch(library, scene_data, source, cache_dir, x0, p, dt):
+def dask_batch(library, scene_data, source, cache_dir, x0, p, dt):
     """A Dask task: one batch; builds the library on the worker if it cannot see it."""
     if not Path(library).is_file():
         if scene_data is None:

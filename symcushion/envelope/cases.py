@@ -11,8 +11,8 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from symcushion.scheme.layout import state_layout
-from symcushion.scheme.layout_params import default_p, param_layout
+from symcushion.layout.vectors import state_layout
+from symcushion.layout.params import default_p, param_layout
 from symcushion.scheme.quaternion import quat_from_axis_angle_np, quat_mul_np, quat_to_rot_np
 from symcushion.scheme.measures import measures_function
 from symcushion.model.scene_data import Scene

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from symcushion.scheme.layout import state_layout
+from symcushion.layout.vectors import state_layout
 from symcushion.scheme.quaternion import body_axis_np
 from symcushion.envelope.cases import SUMMARY
 from symcushion.envelope.study import Limits

@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 
 from symcushion.run.output_files import atomic_write_text, replacing
-from symcushion.envelope.build import _safe
+from symcushion.envelope.build import safe_file_name
 from symcushion.envelope.classify import CLASSES
-from symcushion.envelope.statistics import _slope_bins, CONFIDENCE, EnvelopeResult, wilson_interval
+from symcushion.envelope.statistics import slope_ranges, CONFIDENCE, EnvelopeResult, wilson_interval
 
 __all__ = ["LOGISTIC_RIDGE", "plot_envelope"]
 
@@ -113,14 +113,14 @@ def plot_envelope(result: EnvelopeResult, out_dir) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     st = result.study
     c, col = result.conditions, result.columns
-    name = _safe(st.name)
+    name = safe_file_name(st.name)
     files = {}
     cls = col["class"]
     stable = col["stable"]
     vh, vv = c["horizontal_speed"], c["vertical_speed"]
     slope = c["slope_deg"]
     heading = _heading_from_fall_line(c["heading_deg"])
-    slope_bins = _slope_bins(slope)
+    slope_bins = slope_ranges(slope)
     heading_bins = _HEADINGS if np.ptp(heading) > 0 and np.ptp(vh) > 0 else (("all", 0, 180),)
 
     context = dict(out=out, st=st, c=c, col=col, name=name, cls=cls, stable=stable, vh=vh,

@@ -22,13 +22,13 @@ import numpy as np
 from symcushion.run.matlab import write_table_mat
 from symcushion.run.output_files import atomic_write_text, replacing
 from symcushion.model.scene_data import Scene
-from symcushion.envelope.build import _dask_batch, _safe, build_envelope, DEFAULT_CACHE, run_batch
+from symcushion.envelope.build import dask_batch, safe_file_name, build_envelope, DEFAULT_CACHE, run_batch
 from symcushion.envelope.cases import apply_design, case_params, initial_states, reach, SUMMARY
 from symcushion.envelope.classify import classify
 from symcushion.envelope.plots import plot_envelope
 from symcushion.envelope.statistics import EnvelopeResult
-from symcushion.envelope.study import (_check_counts, _DEFAULTS, EnvelopeStudy, VARIABLES,
-                                       sample_conditions)
+from symcushion.envelope.study import (check_counts, CONDITION_DEFAULTS, EnvelopeStudy, VARIABLES,
+    sample_conditions)
 
 __all__ = ["PROGRESS_INTERVAL", "PROGRESS_LOG_INTERVAL", "BATCH_DIR", "run_envelope", "evaluate",
            "write_result", "output_names"]
@@ -100,7 +100,7 @@ def _level_scene(scene: Scene, friction: bool, mu: np.ndarray) -> Scene:
     return scene if scene.mu > 0 else scene.with_(mu=float(np.max(mu)))
 
 
-def _libraries(study: EnvelopeStudy, mu: np.ndarray, cache_dir, progress: bool) -> dict:
+def case_libraries(study: EnvelopeStudy, mu: np.ndarray, cache_dir, progress: bool) -> dict:
     """One compiled library per kind of case present (frictionless, friction)."""
     return {friction: build_envelope(_level_scene(study.scene, friction, mu), cache_dir,
                                      progress=progress)
@@ -194,7 +194,7 @@ class _Batches:
 
 def output_names(study: EnvelopeStudy) -> tuple:
     """Names of every file and folder a study writes into its output folder."""
-    name = _safe(study.name)                # as the figures name their files
+    name = safe_file_name(study.name)                # as the figures name their files
     return ("cases.csv", "cases.mat", "summary.json", f"{name}.png", f"{name}_pstable.png",
             f"{name}_pstable.csv", f"{name}_distributions.png", BATCH_DIR)
 
@@ -245,14 +245,14 @@ def run_envelope(study: EnvelopeStudy, out_dir=None, *, threads: int | None = No
         raise ValueError(f"`threads` must be a positive integer, got {threads!r}.")
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ValueError(f"`workers` must be a positive integer, got {workers!r}.")
-    _check_counts(study)
+    check_counts(study)
     started = time.perf_counter()
     conditions = sample_conditions(study)
     x0, gravity = initial_states(study, conditions)
     prepare_seconds = time.perf_counter() - started
     scene = study.scene
     started = time.perf_counter()
-    libraries = _libraries(study, conditions["mu"], cache_dir, progress)
+    libraries = case_libraries(study, conditions["mu"], cache_dir, progress)
     p = _all_params(study, conditions["mu"], gravity, design)
     build_seconds = time.perf_counter() - started
     tasks = _tasks(conditions, study.batch)
@@ -341,10 +341,10 @@ def evaluate(study: EnvelopeStudy, conditions: dict, *, threads: int = 1, cache_
         else:
             r = study.ranges.get(name)
             value = r.value if r is not None and r.kind == "fixed" else \
-                (study.scene.mu if name == "mu" else _DEFAULTS[name])
+                (study.scene.mu if name == "mu" else CONDITION_DEFAULTS[name])
             full[name] = np.full(n, value)
     x0, gravity = initial_states(study, full)
-    libraries = _libraries(study, full["mu"], cache_dir, progress)
+    libraries = case_libraries(study, full["mu"], cache_dir, progress)
     p = _all_params(study, full["mu"], gravity, design)
     x_end = np.zeros_like(x0)
     summary = np.zeros((len(SUMMARY), n))
@@ -377,7 +377,7 @@ def _run_dask(study, tasks, todo, libraries, x0, mu, p, done, bar, scheduler,
         futures = {}
         for k in todo:
             friction, idx = tasks[k]
-            fut = client.submit(_dask_batch, str(Path(libraries[friction]).resolve()),
+            fut = client.submit(dask_batch, str(Path(libraries[friction]).resolve()),
                                 _scene_data(study, friction, mu), study.source, cache,
                                 x0[:, idx], p[friction][:, idx], study.scene.dt,
                                 key=f"envelope-{study.name}-{study.seed}-{k}-{os.getpid()}-"

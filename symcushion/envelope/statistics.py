@@ -118,7 +118,7 @@ class EnvelopeResult:
         """The summary JSON: study, counts, P(stable) overall and per slope bin, timings."""
         st = self.study
         slope = self.conditions["slope_deg"]
-        bins = _slope_bins(slope)
+        bins = slope_ranges(slope)
         per_bin = []
         for lo, hi in bins:
             sel = (slope >= lo) & (slope <= hi) if hi == bins[-1][1] else \
@@ -143,7 +143,7 @@ class EnvelopeResult:
         }
 
 
-def _slope_bins(slope: np.ndarray, count: int = 3) -> list:
+def slope_ranges(slope: np.ndarray, count: int = 3) -> list:
     lo, hi = float(np.min(slope)), float(np.max(slope))
     if hi - lo < 1e-9:
         return [(lo, hi)]

@@ -18,7 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from symcushion.model.obstacles import Plane
-from symcushion.model.scene import _Table, read_toml, scene_from_dict
+from symcushion.model.scene import read_toml, scene_from_dict
+from symcushion.validation import Table
 from symcushion.model.scene_data import Scene
 from symcushion.envelope.sampling import MAX_SOBOL_DIMENSIONS, sample_unit
 
@@ -42,7 +43,7 @@ VARIABLES = {
     "tilt_azimuth_deg": ("deg", "direction the body axis leans to"),
     "mu": ("", "Coulomb coefficient"),
 }
-_DEFAULTS = {"horizontal_speed": 0.0, "heading_deg": 0.0, "slope_deg": 0.0, "yaw_deg": 0.0,
+CONDITION_DEFAULTS = {"horizontal_speed": 0.0, "heading_deg": 0.0, "slope_deg": 0.0, "yaw_deg": 0.0,
              "tilt_deg": 0.0, "tilt_azimuth_deg": 0.0}
 #: Slopes above this are refused: the lowest-foot placement and the legs'
 #: geometry are not meant for cliffs (and gravity would pull along the ground).
@@ -209,7 +210,7 @@ class EnvelopeStudy:
     def with_(self, **changes) -> "EnvelopeStudy":
         """A copy with some fields replaced, e.g. ``study.with_(n=200, seed=1)``."""
         new = dataclasses.replace(self, **changes)
-        _check_counts(new)
+        check_counts(new)
         return new
 
 
@@ -230,7 +231,7 @@ def sample_conditions(study: EnvelopeStudy) -> dict:
     return out
 
 
-def _check_counts(study):
+def check_counts(study):
     for name in ("n", "batch"):
         value = getattr(study, name)
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
@@ -242,7 +243,7 @@ def _check_counts(study):
         raise ValueError(f"`method` must be 'sobol' or 'random', got {study.method!r}.")
 
 
-class _Fields(_Table):
+class _Fields(Table):
     """An envelope study table: the scene files' field checker."""
 
     docs = "docs/envelope.md"
@@ -353,7 +354,7 @@ def study_from_dict(data: dict, source: str = "<dict>") -> EnvelopeStudy:
         elif var == "mu":
             ranges[var] = Range("fixed", value=scene.mu)
         else:
-            ranges[var] = Range("fixed", value=_DEFAULTS[var])
+            ranges[var] = Range("fixed", value=CONDITION_DEFAULTS[var])
         _check_range(var, ranges[var], source)
     ra.finish()
 

@@ -24,7 +24,7 @@ import numpy as np
 # the base class and its defaults, re-exported: users import every curve from here
 from symcushion.legs.curve_base import (KINK_WIDTH, RATE_WIDTH, STOP_STIFFNESS_RATIO,
     ZERO_DEFLECTION, Branch, Curve, check_real)
-from symcushion.model.validation import vector
+from symcushion.validation import vector
 
 __all__ = [
     "Curve",

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from symcushion.model.validation import boolean, real
+from symcushion.validation import boolean, real
 
 __all__ = ["Curve", "Branch", "check_real", "KINK_WIDTH", "RATE_WIDTH", "ZERO_DEFLECTION",
            "STOP_STIFFNESS_RATIO"]

@@ -63,11 +63,11 @@ import numpy as np
 
 from symcushion.legs.leg_scheme import curve_param_names, curve_param_values
 from symcushion.legs.characteristics import Curve, Linear
-from symcushion.scheme.layout import LEG_GEOMETRY_FIELDS
+from symcushion.layout.vectors import LEG_GEOMETRY_FIELDS
 from symcushion.legs.strut_geometry import GEOMETRY_SIZE, HingeGeometry, check_angle
 from symcushion.legs.strut_memory import StrutMemory
 from symcushion.legs.strut_numeric import StrutEvaluation
-from symcushion.model.validation import direction, real, vector
+from symcushion.validation import direction, real, vector
 
 __all__ = ["HingedStrut", "RIGID_AXIAL_RATIO", "LAWS", "DEFAULT_LAW", "GEOMETRY_MODES"]
 
@@ -365,7 +365,7 @@ class HingedStrut(HingeGeometry, StrutMemory, StrutEvaluation):
     #: The axial element: its stroke is the leg's ``stroke`` output and its curve's
     #: stroke limit the one the run's bottoming check reads.
     axial_element = "S"
-    #: The fields of the strut's geometry block in ``p`` (``symcushion.scheme.layout``).
+    #: The fields of the strut's geometry block in ``p`` (``symcushion.layout.vectors``).
     geometry_fields = LEG_GEOMETRY_FIELDS
     @property
     def relaxes_free(self) -> tuple:
@@ -381,7 +381,7 @@ class HingedStrut(HingeGeometry, StrutMemory, StrutEvaluation):
         return {"S": geo["delta_S"], "M_beta": geo["beta"], "M_gamma": geo["gamma_deflection"]}
 
     def deflection_outputs(self, geo) -> dict:
-        """The per-leg output fields of the deflections (``symcushion.scheme.layout``)."""
+        """The per-leg output fields of the deflections (``symcushion.layout.vectors``)."""
         x = self.deflections(geo)
         return dict(stroke=x["S"], beta=x["M_beta"], gamma_deflection=x["M_gamma"],
                     secondary_stroke=ca.DM.zeros(2))

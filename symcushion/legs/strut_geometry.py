@@ -21,7 +21,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from symcushion.model.validation import direction, real, vector
+from symcushion.validation import direction, real, vector
 
 __all__ = ["HingeGeometry", "SINGULAR_ANGLE", "GEOMETRY_SIZE", "check_angle", "leg_geometry_expr"]
 

@@ -15,7 +15,7 @@ import numpy as np
 
 from symcushion.legs import absorber
 from symcushion.legs.leg_scheme import checked_params
-from symcushion.model.validation import vector
+from symcushion.validation import vector
 
 __all__ = ["StrutEvaluation"]
 

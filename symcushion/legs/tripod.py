@@ -30,10 +30,10 @@ import numpy as np
 
 from symcushion.legs import absorber
 from symcushion.legs.curve_base import Curve
-from symcushion.scheme.layout_params import TRIPOD_GEOMETRY_FIELDS
+from symcushion.layout.params import TRIPOD_GEOMETRY_FIELDS
 from symcushion.legs.leg_scheme import (cached_memory_functions, curve_param_names,
     curve_param_values)
-from symcushion.model.validation import real, vector
+from symcushion.validation import real, vector
 from symcushion.legs.tripod_geometry import (GEOMETRY_SIZE, ZERO_LENGTH, angle_from_parallel,
     numeric_geometry, tripod_deflections, tripod_geometry_expr, tripod_rest_lengths)
 from symcushion.legs.tripod_numeric import TripodEvaluation
@@ -153,7 +153,7 @@ class InvertedTripod(TripodEvaluation):
                 "secondary3": geo["stroke_secondary"][1]}
 
     def deflection_outputs(self, geo) -> dict:
-        """The per-leg output fields of the deflections (``symcushion.scheme.layout``): the
+        """The per-leg output fields of the deflections (``symcushion.layout.vectors``): the
         primary's stroke and the secondaries'; no hinge angles."""
         return dict(stroke=geo["delta_S"], beta=0.0, gamma_deflection=0.0,
                     secondary_stroke=geo["stroke_secondary"])
@@ -231,7 +231,7 @@ class InvertedTripod(TripodEvaluation):
     def _dm_geometry(self, r):
         return (r, ca.DM(self.h1), ca.DM(self.h2), ca.DM(self.h3), self.outer_length)
 
-    # -- geometry as inputs (symcushion.scheme.layout_params.TRIPOD_GEOMETRY_FIELDS) -----------------
+    # -- geometry as inputs (symcushion.layout.params.TRIPOD_GEOMETRY_FIELDS) -----------------
     geometry_fields = TRIPOD_GEOMETRY_FIELDS
 
     @property

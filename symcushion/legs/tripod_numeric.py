@@ -16,7 +16,7 @@ import numpy as np
 
 from symcushion.legs.leg_scheme import checked_params
 from symcushion.legs.tripod_geometry import ZERO_LENGTH, numeric_geometry
-from symcushion.model.validation import vector
+from symcushion.validation import vector
 
 __all__ = ["TripodEvaluation"]
 

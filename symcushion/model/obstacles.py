@@ -33,7 +33,7 @@ from typing import Callable, Sequence
 import casadi as ca
 import numpy as np
 
-from symcushion.model.validation import direction, real, vector
+from symcushion.validation import direction, real, vector
 
 __all__ = ["Obstacle", "Plane", "Sphere", "ImplicitSurface", "Terrain", "PROJECTION_ITERS",
            "closest_obstacle"]

@@ -29,8 +29,8 @@ from symcushion.model.formula import Formula, FormulaError
 # the scene's data, re-exported: users import scenes from here
 from symcushion.model.scene_data import (EVENT_RULES, HYSTERESIS_LAWS, SCHEMES, SLIP_RULES,
     TANGENT_PLANES, Body, Scene, symmetric_legs, symmetric_tripods)
-from symcushion.model.validation import INVALID, Problems, SceneError, Table, show
-from symcushion.model.validation import path as validate_path
+from symcushion.validation import INVALID, Problems, SceneError, Table, show
+from symcushion.validation import path as validate_path
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -44,10 +44,6 @@ __all__ = ["Body", "Scene", "SceneError", "symmetric_legs", "load_scene", "scene
 # ---------------------------------------------------------------------------
 # TOML
 # ---------------------------------------------------------------------------
-#: Kept for the study loaders that subclass it (the TOML checker now lives in
-#: ``symcushion.model.validation``).
-_Table = Table
-
 _CURVES = ("linear", "piecewise", "crushable", "gas", "two_sided")
 #: Every key of an element table, for "did you mean" on a misspelt one.
 _CURVE_KEYS = ("type", "smooth", "tunable", "unloading", "stiffness", "preload", "x", "f",

@@ -25,7 +25,7 @@ from symcushion.legs.curve_base import Curve
 from symcushion.model.obstacles import Obstacle
 from symcushion.legs.strut import HingedStrut
 from symcushion.legs.tripod import InvertedTripod
-from symcushion.model.validation import choice, direction, integer, real, show, vector
+from symcushion.validation import choice, direction, integer, real, show, vector
 
 __all__ = ["Body", "Scene", "symmetric_legs", "symmetric_tripods", "TANGENT_PLANES",
            "SLIP_RULES", "EVENT_RULES", "HYSTERESIS_LAWS", "SCHEMES", "LEG_SCHEMES"]

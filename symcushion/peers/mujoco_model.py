@@ -40,7 +40,7 @@ import numpy as np
 from symcushion.legs.characteristics import Linear
 from symcushion.model.obstacles import Plane, Sphere
 from symcushion.model.scene_data import Scene
-from symcushion.scheme.layout import state_layout
+from symcushion.layout.vectors import state_layout
 from symcushion.peers.run import (PeerRun, check_scene, leg_kinematics, output_times, positive,
     quat_to_rot_np, state_vector)
 

@@ -38,9 +38,9 @@ import numpy as np
 
 from symcushion.model.obstacles import ImplicitSurface, Plane, Sphere
 from symcushion.model.scene_data import Scene
-from symcushion.scheme.layout import BODY_STATE, BODY_STATE_FIELDS, state_layout
+from symcushion.layout.vectors import BODY_STATE, BODY_STATE_FIELDS, state_layout
 from symcushion.scheme.quaternion import quat_mul, quat_to_rot
-from symcushion.scheme.vector_fields import Field, VectorLayout
+from symcushion.layout.fields import Field, VectorLayout
 from symcushion.peers.run import (PeerRun, check_scene, leg_kinematics, nonnegative, output_times,
     positive, quat_to_rot_np, state_vector)
 

@@ -1,20 +1,17 @@
 """Physical sanity of a valid scene, before and during a run.
 
-A scene whose every field is well-formed (``symcushion.model.validation``) can still
+A scene whose every field is well-formed (``symcushion.validation``) can still
 describe nonsense: a body that starts inside the dome, feet off a terrain
 grid, a surface formula that is NaN where the feet go, a step above the
 explicit stability limit. This module owns those checks:
 
 * :func:`check_scene` — every check before the run, as a list of
   :class:`Finding` (``severity`` "error" or "warning"); nothing is simulated.
-* :func:`preflight` — raises :class:`~symcushion.model.validation.SceneError` on
+* :func:`preflight` — raises :class:`~symcushion.validation.SceneError` on
   errors (and on warnings with ``strict``), else emits each warning as a
   :class:`PhysicsWarning`.
-* :func:`check_file` — the checks of a parsed scene, envelope, design or
-  optimise study file (``symcushion check``): its fields, then every scene
-  it describes at the state it starts from.
 * the checks *during* a run live in ``symcushion.run.monitor``
-  (:class:`~symcushion.run.monitor.RunMonitor`, also importable from here); they
+  (:class:`~symcushion.run.monitor.RunMonitor`, re-exported here); they
   share :class:`Finding` and the geometry helpers of ``symcushion.run.findings``.
 
 The checks themselves, by family, are ``symcushion.run.checks_obstacles`` (where
@@ -41,10 +38,11 @@ from symcushion.run.checks_obstacles import (BODY_TOLERANCE, FAST_STEP_FRACTION,
     check_surfaces, check_terrain)
 from symcushion.run.findings import Finding, PhysicsWarning
 from symcushion.model.scene_data import Scene
+from symcushion.run.monitor import RunMonitor
 from symcushion.scheme.touchdown import initial_state
-from symcushion.model.validation import SceneError
+from symcushion.validation import SceneError
 
-__all__ = ["Finding", "PhysicsWarning", "check_scene", "preflight", "check_file", "file_kind",
+__all__ = ["Finding", "PhysicsWarning", "RunMonitor", "check_scene", "preflight",
            "START_TOLERANCE", "BODY_TOLERANCE", "REACH_FRACTIONS", "SAMPLE_DIRECTIONS",
            "FD_STEP", "GRADIENT_TOLERANCE", "FAST_STEP_FRACTION", "DT_ERROR_RATIO",
            "FOOTPAD_FRACTION"]
@@ -116,81 +114,3 @@ def preflight(scene: Scene, model=None, strict: bool = False, *, x0=None, ignore
     for f in findings:
         warnings.warn(f.message, PhysicsWarning, stacklevel=2)
     return findings
-
-
-def __getattr__(name):
-    # RunMonitor lives in symcushion.run.monitor, which imports this module; it is
-    # offered here too (PEP 562) so that one import serves before and during a run.
-    if name == "RunMonitor":
-        from symcushion.run.monitor import RunMonitor
-        return RunMonitor
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def file_kind(data: dict) -> str:
-    """What a parsed TOML file is, from its tables: ``"scene"``, ``"envelope"``
-    (``[ranges]``), ``"design"`` (``[ranges]`` and ``[design]``: design for the
-    envelope) or ``"optimise"`` (``[design]`` alone)."""
-    if not isinstance(data, dict):
-        return "scene"
-    if "ranges" in data:
-        return "design" if "design" in data else "envelope"
-    return "optimise" if "design" in data else "scene"
-
-
-def check_file(data: dict, source: str, base_dir=".") -> tuple:
-    """Check a parsed scene or study file: its fields, then the physics of its scenes.
-
-    Parameters
-    ----------
-    data : dict
-        The parsed TOML file.
-    source : str
-        Its name, for messages (``"<stdin>"`` for standard input).
-    base_dir : str or Path
-        Where an optimise study's ``study.scene`` file is looked up.
-
-    Returns
-    -------
-    kind : str
-        :func:`file_kind`.
-    checked : list of (str, list of Finding)
-        Per scene of the file (an optimise study's scenarios; an envelope or
-        design study's scene placed for its median conditions), a label and
-        its findings.
-
-    Raises
-    ------
-    ValueError
-        A bad field (a :class:`SceneError` lists every bad field of a scene's
-        tables at once).
-    """
-    kind = file_kind(data)
-    if kind == "scene":
-        from symcushion.model.scene import scene_from_dict
-
-        return kind, [("scene", check_scene(scene_from_dict(data, source)))]
-    if kind == "optimise":
-        from symcushion.design.optimise.study import study_from_dict
-
-        problem = study_from_dict(data, source, base_dir=base_dir).problem
-        return kind, [(f"scenario {sc.name}", check_scene(sc.scene, x0=sc.x0))
-                      for sc in problem.scenarios]
-    if kind == "design":
-        from symcushion.design.robust.study import robust_study_from_dict
-
-        study = robust_study_from_dict(data, source).envelope
-    else:
-        from symcushion.envelope.study import study_from_dict
-
-        study = study_from_dict(data, source)
-    return kind, [("median touchdown", _check_median_case(study))]
-
-
-def _check_median_case(study) -> list:
-    """The findings of an envelope study's scene at the median of every condition."""
-    from symcushion.envelope.cases import initial_states
-
-    median = {name: r.transform(np.array([0.5])) for name, r in study.ranges.items()}
-    x0, _ = initial_states(study, median)
-    return check_scene(study.scene, x0=x0[:, 0])

@@ -17,7 +17,7 @@ import casadi as ca
 import numpy as np
 
 from symcushion.run.findings import Finding, obstacle_distances, rotations, world_points
-from symcushion.scheme.layout import state_layout
+from symcushion.layout.vectors import state_layout
 from symcushion.model.obstacles import ImplicitSurface, Terrain, closest_obstacle
 from symcushion.legs.strut_geometry import SINGULAR_ANGLE
 

@@ -31,7 +31,7 @@ from symcushion.scheme.stability import STABILITY_SAFETY
 from symcushion.run.time_loops import (MAX_STEP_DT, MAX_STEP_FRACTION, MIN_STEP_FRACTION,
     estimate_companion, estimate_fixed, run_adaptive, run_controlled, run_fixed)
 from symcushion.scheme.touchdown import STEP_CRITERION_EPS, StepModel, build_model, initial_state
-from symcushion.model.validation import real
+from symcushion.validation import real
 from symcushion.run.trajectory import Trajectory, initial_output, trajectory_from
 
 __all__ = ["Trajectory", "trajectory_from", "initial_output", "simulate", "save", "RunWarning",

@@ -26,8 +26,8 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from symcushion.scheme.layout import output_layout, state_layout
-from symcushion.model.validation import real
+from symcushion.layout.vectors import output_layout, state_layout
+from symcushion.validation import real
 
 __all__ = ["PEAKS", "ESTIMATE_ORDER", "DEFAULT_ESTIMATE_RTOL", "DT_SAFETY", "MAX_SCALED_ERROR",
            "COMPANIONS",
@@ -92,7 +92,7 @@ FAC_MAX = 2.0
 
 class ToleranceError(ValueError, TypeError):
     """A bad tolerance. A ValueError whatever is wrong with it; also a TypeError, so
-    that a caller catching what :func:`~symcushion.model.validation.real` raises for a
+    that a caller catching what :func:`~symcushion.validation.real` raises for a
     non-number still catches it."""
 
 

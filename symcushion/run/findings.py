@@ -14,7 +14,7 @@ from dataclasses import asdict, dataclass
 import casadi as ca
 import numpy as np
 
-from symcushion.scheme.layout import state_layout
+from symcushion.layout.vectors import state_layout
 from symcushion.model.scene_data import Scene
 
 __all__ = ["Finding", "PhysicsWarning", "rotations", "obstacle_distances", "world_points"]

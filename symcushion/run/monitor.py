@@ -20,9 +20,9 @@ from symcushion.run.checks_obstacles import BODY_TOLERANCE
 from symcushion.run.findings import Finding, obstacle_distances, rotations, world_points
 from symcushion.model.obstacles import Terrain
 from symcushion.model.scene_data import Scene
-from symcushion.scheme.layout import output_layout, state_layout
+from symcushion.layout.vectors import output_layout, state_layout
 from symcushion.scheme.touchdown import initial_state
-from symcushion.model.validation import did_you_mean
+from symcushion.validation import did_you_mean
 
 __all__ = ["RunMonitor", "DEFAULT_TOLERANCES", "ENERGY_FLOOR", "no_touchdown"]
 

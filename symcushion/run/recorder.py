@@ -19,7 +19,7 @@ import warnings
 import numpy as np
 
 from symcushion.run.error_control import PeakTracker
-from symcushion.scheme.layout import MODES, output_layout, state_layout
+from symcushion.layout.vectors import MODES, output_layout, state_layout
 from symcushion.run.trajectory import Trajectory, assemble_trajectory, initial_output
 
 __all__ = ["Recorder", "RunWarning", "MAX_EVENTS", "ENERGY_FIELDS"]

@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from symcushion.scheme.layout import MODES, output_columns, state_columns
+from symcushion.layout.vectors import MODES, output_columns, state_columns
 # the output files' mechanics, re-exported: users and studies import them from here
 from symcushion.run.output_files import (OutputExists, atomic_write_text, check_out_dir,
     check_output_file, claim_output, jsonable, remove_stale, replacing, result_dir,

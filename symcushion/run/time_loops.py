@@ -20,7 +20,7 @@ import numpy as np
 
 from symcushion.run.error_control import (COMPANIONS, PeakTracker, StepErrorNorm, estimate_report,
     next_step, step_pair_function)
-from symcushion.scheme.layout import output_layout
+from symcushion.layout.vectors import output_layout
 from symcushion.scheme.stability import stable_dt
 from symcushion.scheme.touchdown import MAX_HALVINGS
 from symcushion.run.trajectory import initial_output

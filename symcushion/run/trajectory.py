@@ -2,7 +2,7 @@
 
 This module owns the arrays a user reads (positions, forces, angles, modes,
 per time point) and how they are derived from the state x and output y of
-``touchdown_step`` (named fields of ``symcushion.scheme.layout``). It must not run the
+``touchdown_step`` (named fields of ``symcushion.layout.vectors``). It must not run the
 time loop (``symcushion.run.driver``) nor format files (``symcushion.run.results``);
 it calls them for ``load``, ``save_csv`` and ``save_npz``.
 """
@@ -14,7 +14,7 @@ import casadi as ca
 import numpy as np
 
 from symcushion.model.obstacles import closest_obstacle
-from symcushion.scheme.layout import MODES, output_layout, state_layout
+from symcushion.layout.vectors import MODES, output_layout, state_layout
 from symcushion.scheme.quaternion import quat_to_rot_np
 from symcushion.scheme.touchdown import StepModel
 
@@ -79,7 +79,7 @@ class Trajectory:
     info: dict = field(default_factory=dict)
 
     def states(self) -> np.ndarray:
-        """The state vector of every row, as columns (nx, T) (``symcushion.scheme.layout``)."""
+        """The state vector of every row, as columns (nx, T) (``symcushion.layout.vectors``)."""
         if self.rows is None:
             raise ValueError("this Trajectory keeps no rows; load it with Trajectory.load or "
                              "take it from simulate to read its states.")

@@ -9,7 +9,7 @@ one CasADi Function of ``(x, y, p)``, and read by name.
 
 It must not integrate, keep running extrema or apply limits: callers fold,
 map or classify these per-step values themselves. It reads the vectors only
-through :mod:`symcushion.scheme.layout`.
+through :mod:`symcushion.layout.vectors`.
 """
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ import math
 
 import casadi as ca
 
-from symcushion.scheme.layout import footpads, output_layout, param_layout, state_layout
+from symcushion.layout.vectors import footpads, output_layout, param_layout, state_layout
 from symcushion.scheme.quaternion import one_minus_cos_tilt, quat_to_rot
 from symcushion.model.obstacles import closest_obstacle
 

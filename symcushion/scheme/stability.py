@@ -16,7 +16,7 @@ import casadi as ca
 import numpy as np
 
 from symcushion.scheme.body_step import legs_wrench
-from symcushion.scheme.layout import param_layout, state_layout
+from symcushion.layout.vectors import param_layout, state_layout
 from symcushion.scheme.quaternion import quat_exp, quat_to_rot, quat_to_rot_np
 from symcushion.scheme.touchdown import StepModel
 

@@ -6,7 +6,7 @@ of ``touchdown_step``, the body's state and parameters, each foot's stored
 state, each leg's Functions, curve parameters, rest foot and footpad, and
 which legs are on the memory law or may lock; and :func:`start_foot`, a
 foot's position in body axes at the start of the step. It reads the vectors
-only through :mod:`symcushion.scheme.layout`.
+only through :mod:`symcushion.layout.vectors`.
 
 It must not compute forces, kicks or contact steps, nor build Functions.
 """
@@ -18,7 +18,7 @@ import casadi as ca
 
 from symcushion.scheme.body_step import BodyParams
 from symcushion.scheme.branch_switch import locates_switch
-from symcushion.scheme.layout import footpads, param_layout, state_layout
+from symcushion.layout.vectors import footpads, param_layout, state_layout
 from symcushion.legs.leg_scheme import bound_geometry
 from symcushion.scheme.quaternion import quat_to_rot
 from symcushion.model.scene import Scene

@@ -93,21 +93,19 @@ import numpy as np
 
 from symcushion.scheme.body_step import kick_drift, legs_wrench
 from symcushion.scheme.foot_step import FeetStep, LegInput, StepPoses
-from symcushion.scheme.layout import (BODY_OUT, BODY_STATE, LEG_OUT, LEG_STATE, MODES,
-    ParamLayout, default_p, param_layout)
+from symcushion.layout.vectors import (BODY_OUT, BODY_STATE, LEG_OUT, LEG_STATE, MODES,
+    ParamLayout, default_p)
 from symcushion.scheme.quaternion import quat_to_rot
 from symcushion.model.scene import Scene
-from symcushion.scheme.step_start import MEMORY_FIELDS, StepStart, start_foot, step_start  # noqa: F401
+from symcushion.scheme.step_start import StepStart, start_foot, step_start
 from symcushion.legs.strut import GEOMETRY_MODES
 from symcushion.scheme.stroke_lock import axial_branches
 from symcushion.scheme.touchdown_events import (gated_lock_phase, lock_candidates, release_branch,
     second_kick, shake_drift, switch_kick)
 from symcushion.scheme.touchdown_outputs import (book_event_work, foot_state, leg_end,
     leg_outputs, pack_step)
-from symcushion.scheme.touchdown_outputs import leg_work  # noqa: F401  (its home before the split)
-from symcushion.scheme.touchdown_states import (_check_geometry_entries, equilibrium_state,
+from symcushion.scheme.touchdown_states import (check_geometry_entries, equilibrium_state,
     initial_state)
-from symcushion.scheme.touchdown_states import _rot_np  # noqa: F401  (re-exported by symcushion.simulate)
 
 __all__ = ["StepModel", "build_model", "initial_state", "equilibrium_state",
            "MODES", "STEP_CRITERION_EPS", "MAX_HALVINGS",
@@ -142,7 +140,7 @@ class StepModel:
         (geometry as inputs, the default) each leg's ``leg{j}.hinge.x/y/z``,
         ``leg{j}.e0.x/y/z``, ``leg{j}.en.x/y/z`` and ``leg{j}.length``, and, in a
         scene where some leg has a footpad, each leg's ``leg{j}.footpad``
-        (:class:`~symcushion.scheme.layout.ParamLayout`).
+        (:class:`~symcushion.layout.vectors.ParamLayout`).
     params : ParamLayout
         The layout of ``p`` (read and write its entries by name).
     gated : dict
@@ -222,7 +220,7 @@ class StepModel:
         if self.params is None or not self.params.geometry:
             return
         p = np.asarray(p, dtype=float).ravel()
-        _check_geometry_entries(self.scene, self.params, p)
+        check_geometry_entries(self.scene, self.params, p)
 
     @property
     def n_legs(self):
@@ -234,17 +232,6 @@ class StepModel:
         need them."""
         return {"instructions": self.step.n_instructions(), "nodes": self.step.n_nodes(),
                 "gated": sum(f.n_instructions() for f in self.gated.values())}
-
-
-def _leg_params(scene: Scene, geometry: bool = True):
-    """Names of ``p`` and each leg's (start, stop) range of curve parameters."""
-    lay = param_layout(scene, geometry)
-    return lay.names, [(sl.start, sl.stop) for sl in lay._legs]
-
-
-
-def _default_p(scene):
-    return default_p(scene)
 
 
 # ---------------------------------------------------------------------------

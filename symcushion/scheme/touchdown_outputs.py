@@ -7,7 +7,7 @@ force and contact flag (:func:`leg_end`), its stored state (:func:`foot_state`),
 its per-step outputs with the energy it took (:func:`leg_outputs`,
 :func:`leg_work`), the axial work the memory law's event kick books
 (:func:`book_event_work`) and the packing of both vectors through
-:mod:`symcushion.scheme.layout` (:func:`pack_step`).
+:mod:`symcushion.layout.vectors` (:func:`pack_step`).
 
 It must not kick or drift the body, call the contact step or decide the
 events of the scheme: it reads their results.
@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import casadi as ca
 
-from symcushion.scheme.layout import output_layout, state_layout
+from symcushion.layout.vectors import output_layout, state_layout
 from symcushion.scheme.step_start import MEMORY_FIELDS, StepStart
 from symcushion.scheme.stroke_lock import LOCKED, UNLOADING
 

@@ -5,7 +5,7 @@ feet free, at the rest poses of a step's leg geometry) and
 :func:`equilibrium_state` (every foot on the obstacle, the legs' wrench
 balancing the body, solved by Newton), and the check of the legs' geometry
 entries of a ``p`` that both they and ``StepModel.check_params`` apply. It
-reads the vectors only through :mod:`symcushion.scheme.layout`.
+reads the vectors only through :mod:`symcushion.layout.vectors`.
 
 It must not build or run the step (``symcushion.scheme.touchdown``,
 ``symcushion.run.driver``).
@@ -16,16 +16,16 @@ import casadi as ca
 import numpy as np
 
 from symcushion.scheme.body_step import legs_wrench
-from symcushion.scheme.layout import ParamLayout, default_p, footpads, param_layout, state_layout
+from symcushion.layout.vectors import ParamLayout, default_p, footpads, param_layout, state_layout
 from symcushion.model.obstacles import closest_obstacle
 from symcushion.scheme.quaternion import quat_exp, quat_mul, quat_to_rot, quat_to_rot_np
 from symcushion.model.scene import Scene
-from symcushion.model.validation import real
+from symcushion.validation import real
 
 __all__ = ["initial_state", "equilibrium_state"]
 
 
-def _check_geometry_entries(scene: Scene, lay: ParamLayout, p) -> None:
+def check_geometry_entries(scene: Scene, lay: ParamLayout, p) -> None:
     """The legs' geometry blocks and footpads of a 1-D ``p`` with geometry entries."""
     for j, leg in enumerate(scene.legs):
         leg.check_geometry_block(lay.leg_geometry(p, j), where=f"`p` of leg {j}: ")
@@ -64,7 +64,7 @@ def _legs_at(scene: Scene, p=None):
     fns = [leg.functions(mode) for leg in scene.legs]
     p_legs = [lay.leg_inputs(p, j) for j in range(len(scene.legs))]
     if lay.geometry:
-        _check_geometry_entries(scene, lay, p)
+        check_geometry_entries(scene, lay, p)
         rest = [np.asarray(ca.evalf(leg.rest_foot_expr(ca.DM(p_leg))), dtype=float).ravel()
                 for leg, p_leg in zip(scene.legs, p_legs)]
     else:

@@ -53,21 +53,21 @@ def _quat_rot(q):
                      [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
 
 
-def _hinges(traj, scene):
+def hinge_positions(traj, scene):
     """World positions of the hinges, shape (T, N, 3)."""
     H = np.array([leg.hinge for leg in scene.legs])
     R = np.array([_quat_rot(q) for q in traj.attitude])
     return traj.position[:, None, :] + np.einsum("tij,nj->tni", R, H)
 
 
-def _bounds(traj, hinges):
+def scene_bounds(traj, hinges):
     pts = np.concatenate([traj.position, hinges.reshape(-1, 3), traj.foot.reshape(-1, 3)])
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     centre, half = (lo + hi) / 2, max(float(np.max(hi - lo)) / 2, 0.2) * 1.15
     return centre, half
 
 
-def _surface(scene, centre, half):
+def surface_heights(scene, centre, half):
     """Height z(x, y) of the obstacle surface over a grid around the scene (NaN: none)."""
     p = ca.SX.sym("p", 3)
     dist = ca.Function("surface_distance", [p], [closest_obstacle(scene.obstacles, p)[0]],
@@ -112,13 +112,13 @@ class _Scene3D:
         import matplotlib.pyplot as plt
 
         self.traj, self.scene = traj, scene
-        self.hinges = _hinges(traj, scene)
-        self.centre, self.half = _bounds(traj, self.hinges)
+        self.hinges = hinge_positions(traj, scene)
+        self.centre, self.half = scene_bounds(traj, self.hinges)
         self.fig = fig or plt.figure(figsize=(6.4, 5.6))
         ax = self.ax = self.fig.add_subplot(projection="3d", computed_zorder=False)
         # drawn in zorder: surface first, then the lander over it (feet behind the
         # obstacle stay visible rather than vanishing into it)
-        X, Y, Z = _surface(scene, self.centre, self.half)
+        X, Y, Z = surface_heights(scene, self.centre, self.half)
         if np.isfinite(Z).any():
             # flat colour: a GIF has 256 colours per frame, and a shaded, translucent
             # surface would use them up and shift the colours of the feet

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from symcushion.viz.animate import (ARROW_FRACTION, MODE_COLORS, _bounds, _hinges, _surface,
+from symcushion.viz.animate import (ARROW_FRACTION, MODE_COLORS, scene_bounds, hinge_positions, surface_heights,
     frame_indices)
 from symcushion.viz.chromium import BROWSERS, Chromium, browser
 from symcushion.run.output_files import check_output_file
@@ -154,8 +154,8 @@ class _Geometry:
 
     def __init__(self, traj, scene):
         self.traj = traj
-        self.hinges = _hinges(traj, scene)
-        self.centre, self.half = _bounds(traj, self.hinges)
+        self.hinges = hinge_positions(traj, scene)
+        self.centre, self.half = scene_bounds(traj, self.hinges)
         peak = float(np.max(np.linalg.norm(traj.force, axis=-1), initial=0.0))
         self.arrow_scale = ARROW_FRACTION * 2 * self.half / peak if peak > 0 else 0.0
         self.colors = _mode_colors()
@@ -242,7 +242,7 @@ def viewer_figure(traj, scene, frames: int = DEFAULT_VIEW_FRAMES, name: str | No
     moving = geo.traces(go, rows[0])
     for trace in moving:
         fig.add_trace(trace, row=1, col=1)
-    X, Y, Z = _surface(scene, geo.centre, geo.half)
+    X, Y, Z = surface_heights(scene, geo.centre, geo.half)
     if np.isfinite(Z).any():
         fig.add_trace(go.Surface(x=X, y=Y, z=Z, showscale=False, opacity=0.85, name="obstacle",
                                  colorscale=[[0, "#f5deb3"], [1, "#d2b48c"]], hoverinfo="skip"),

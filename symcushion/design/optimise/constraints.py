@@ -12,10 +12,10 @@ import math
 import casadi as ca
 import numpy as np
 
-from symcushion.scheme.layout import state_layout
+from symcushion.layout.vectors import state_layout
 from symcushion.scheme.measures import measures_function
 from symcushion.design.optimise.geometry import PRACTICAL_KINDS
-from symcushion.design.optimise.spec import _Block, _up, VIOLATION_TOL
+from symcushion.design.optimise.spec import Block, up_direction, VIOLATION_TOL
 
 __all__: list = ["DESIGN_OUTPUTS", "design_outputs_of"]
 
@@ -65,7 +65,7 @@ def design_outputs_of(y, shapes) -> list:
 
 
 
-class _Constraints:
+class Constraints:
     """The NLP of a :class:`DesignProblem`: objective, limit and shape rows (a mixin).
 
     Builds ``design_fg`` from the scenarios' rollouts and the per-step
@@ -94,7 +94,7 @@ class _Constraints:
                                      "and no design variable can change it; make the "
                                      "parameters involved design variables or fix the curve.")
                 return
-            blocks.append(_Block(kind, scenario, leg, n_rows, n_rows + expr.numel(), lower, upper,
+            blocks.append(Block(kind, scenario, leg, n_rows, n_rows + expr.numel(), lower, upper,
                                  scale, unit, dt, label))
             rows.append(expr / scale)
             n_rows += expr.numel()
@@ -149,7 +149,7 @@ class _Constraints:
         peak_exprs, stroke_exprs = [], []
         for s, model in zip(self.scenarios, self.models):
             scene = s.scene
-            up = _up(scene.gravity)
+            up = up_direction(scene.gravity)
             # the design rows of p, then this scenario's own μ, gravity and body, and the
             # legs' geometry (expressions of θ where it is designed)
             p_full = ca.vertcat(p, self._full_p_tail(theta, model))
@@ -222,7 +222,7 @@ class _Constraints:
                 top = lim.rebound_speed if lim.rebound_speed is not None else math.inf
                 bottom = -lim.sink_speed if lim.sink_speed is not None else -math.inf
                 v0 = state_layout(model.n_legs).get(s.x0, "velocity")
-                sc = max(abs(float(np.dot(_up(s.scene.gravity), v0))), 0.1)
+                sc = max(abs(float(np.dot(up_direction(s.scene.gravity), v0))), 0.1)
                 add(m["v_up"], "final_speed", sc, bottom / sc, top / sc, "m/s", s.name,
                     label="final vertical speed")
 

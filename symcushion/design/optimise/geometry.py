@@ -3,7 +3,7 @@
 Owns :class:`GeometryVariable` (hinge radius and height, leg length L₀,
 splay of the rest direction e₀, footpad radius; per leg or shared by
 symmetric legs), :class:`PracticalLimits` (footprint radius, leg mass proxy,
-ground clearance at full stroke) and the mixin :class:`_GeometryDesign` of
+ground clearance at full stroke) and the mixin :class:`GeometryDesign` of
 both design problems: it resolves the variables against the legs, maps the
 design θ into the geometry entries of the step's ``p`` (the legs' blocks of
 ``build_model(scene, geometry="input")``, docs/strut.md) as a CasADi
@@ -31,11 +31,11 @@ import casadi as ca
 import numpy as np
 
 from symcushion.design.optimise.shape_points import branch_rate, shape_points
-from symcushion.scheme.layout import state_layout
+from symcushion.layout.vectors import state_layout
 from symcushion.scheme.quaternion import quat_to_rot, quat_to_rot_np
 from symcushion.model.obstacles import closest_obstacle
 from symcushion.legs.strut import HingedStrut
-from symcushion.design.optimise.spec import _real
+from symcushion.design.optimise.spec import real_number
 
 __all__ = ["GEOMETRY_QUANTITIES", "PRACTICAL_KINDS", "GeometryVariable", "PracticalLimits",
            "PLACEMENT_ITERS"]
@@ -43,7 +43,7 @@ __all__ = ["GEOMETRY_QUANTITIES", "PRACTICAL_KINDS", "GeometryVariable", "Practi
 #: Geometry quantities a design may vary, with their units (splay in rad).
 GEOMETRY_QUANTITIES = {"hinge_radius": "m", "hinge_height": "m", "length": "m",
                        "splay": "rad", "footpad": "m"}
-#: Kinds of the practical-limit rows (``_Block.kind``), as named in reports.
+#: Kinds of the practical-limit rows (``Block.kind``), as named in reports.
 PRACTICAL_KINDS = ("footprint", "leg_mass", "ground_clearance")
 #: Symbolic placement steps of a scenario's body above a curved obstacle (one is
 #: exact on a plane; each further step halves the error of the last many times
@@ -115,7 +115,7 @@ class PracticalLimits:
         for name in ("footprint_radius", "leg_mass", "ground_clearance"):
             value = getattr(self, name)
             if value is not None:
-                setattr(self, name, _real(f"design.limits.{name}", value, positive=True))
+                setattr(self, name, real_number(f"design.limits.{name}", value, positive=True))
 
     @property
     def any(self) -> bool:
@@ -153,7 +153,7 @@ def _rotate(v, axis, angle):
             + axis * ca.dot(axis, v) * (1 - ca.cos(angle)))
 
 
-class _GeometryDesign:
+class GeometryDesign:
     """Geometry variables, the geometry entries of ``p`` and practical rows (a mixin).
 
     Reads ``legs``, ``var_names``, ``lower``, ``upper``, ``scale``, ``initial``
@@ -190,8 +190,8 @@ class _GeometryDesign:
             if q not in GEOMETRY_QUANTITIES:
                 raise ValueError(f"`geometry[{i}].quantity` must be one of "
                                  f"{list(GEOMETRY_QUANTITIES)}, got {q!r}.")
-            lo = _real(f"geometry[{i}].lower", spec.lower)
-            hi = _real(f"geometry[{i}].upper", spec.upper)
+            lo = real_number(f"geometry[{i}].lower", spec.lower)
+            hi = real_number(f"geometry[{i}].upper", spec.upper)
             if not (math.isfinite(lo) and math.isfinite(hi)) or lo > hi:
                 raise ValueError(f"geometry variable `{q}`: bounds [{lo:g}, {hi:g}] must be "
                                  "finite with lower ≤ upper; give both bounds.")
@@ -230,7 +230,7 @@ class _GeometryDesign:
                 start.append(float(values[0]))
                 sc = spec.scale if spec.scale is not None else \
                     (max(abs(lo), abs(hi)) if values[0] == 0 else abs(float(values[0])))
-                scale.append(_real(f"geometry[{i}].scale", sc, positive=True))
+                scale.append(real_number(f"geometry[{i}].scale", sc, positive=True))
                 self.geometry_vars.append((len(self.var_names) + len(names) - 1, q, group))
         n_curve = len(self.var_names)
         self._is_curve = np.r_[np.ones(n_curve, dtype=bool), np.zeros(len(names), dtype=bool)]

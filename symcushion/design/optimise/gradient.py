@@ -39,7 +39,7 @@ NOISE_STEP = 1e-12
 NOISE_FACTOR = 10.0
 
 
-class _GradientCheck:
+class GradientCheck:
     """AD gradients of a :class:`DesignProblem` against central differences (a mixin)."""
 
     # -- derivatives --------------------------------------------------------------

@@ -17,17 +17,17 @@ from typing import Callable, Sequence
 import casadi as ca
 import numpy as np
 
-from symcushion.scheme.layout import state_layout
+from symcushion.layout.vectors import state_layout
 from symcushion.scheme.quaternion import quat_to_rot_np
 from symcushion.model.obstacles import closest_obstacle
 from symcushion.scheme.touchdown import build_model, initial_state
-from symcushion.design.optimise.constraints import _Constraints, design_outputs_of
-from symcushion.design.optimise.gradient import _GradientCheck
-from symcushion.design.optimise.space import _DesignSpace
-from symcushion.design.optimise.progress import _IterationCallback
+from symcushion.design.optimise.constraints import Constraints, design_outputs_of
+from symcushion.design.optimise.gradient import GradientCheck
+from symcushion.design.optimise.space import DesignSpace
+from symcushion.design.optimise.progress import IterationCallback
 from symcushion.design.optimise.result import DesignResult
 from symcushion.design.optimise.geometry import PRACTICAL_KINDS
-from symcushion.design.optimise.spec import (_Block, _leg_param_names, _up, CurveShape,
+from symcushion.design.optimise.spec import (Block, leg_param_names, up_direction, CurveShape,
     DesignVariable, Evaluation, Limits, OBJECTIVES, Scenario, VIOLATION_TOL)
 
 __all__ = ["IPOPT_DEFAULTS", "FEASIBLE_SCALE_MAX", "FEASIBLE_BISECTIONS", "FEASIBLE_MARGIN",
@@ -67,7 +67,7 @@ FEASIBLE_BISECTIONS = 12
 FEASIBLE_MARGIN = 1e-2
 
 
-class DesignProblem(_DesignSpace, _Constraints, _GradientCheck):
+class DesignProblem(DesignSpace, Constraints, GradientCheck):
     """The design NLP over a set of scenarios.
 
     Parameters
@@ -117,10 +117,10 @@ class DesignProblem(_DesignSpace, _Constraints, _GradientCheck):
         self.models = [self._model(s.scene) for s in self.scenarios]
         # design variables are the legs' curve parameters, the head of every model's p;
         # the scene entries after them (μ, gravity, body) stay each scenario's own
-        self.param_names = _leg_param_names(self.models[0])
+        self.param_names = leg_param_names(self.models[0])
         for s, m in zip(self.scenarios, self.models):
-            if _leg_param_names(m) != self.param_names:
-                raise ValueError(f"scenario `{s.name}` has parameters {_leg_param_names(m)}, "
+            if leg_param_names(m) != self.param_names:
+                raise ValueError(f"scenario `{s.name}` has parameters {leg_param_names(m)}, "
                                  f"the first scenario {self.param_names}; scenarios must share "
                                  "legs.")
             if s.x0 is None:
@@ -160,7 +160,7 @@ class DesignProblem(_DesignSpace, _Constraints, _GradientCheck):
         rest poses of θ's geometry and the body placed at the scenario's clearance."""
         s = self.scenarios[k]
         theta = ca.DM(np.asarray(theta, dtype=float))
-        x0 = self._placed_state(s.x0, theta, s.scene, s.clearance, _up(s.scene.gravity))
+        x0 = self._placed_state(s.x0, theta, s.scene, s.clearance, up_direction(s.scene.gravity))
         return np.asarray(ca.evalf(x0), dtype=float).ravel()
 
     # -- evaluation -------------------------------------------------------------
@@ -224,7 +224,7 @@ class DesignProblem(_DesignSpace, _Constraints, _GradientCheck):
     def _efficiency(self, s: Scenario, peak):
         """Ideal-absorber efficiency (v²/2s + g)/peak for vertical legs (else empty)."""
         scene = s.scene
-        up = _up(scene.gravity)
+        up = up_direction(scene.gravity)
         if self.limits.stroke is None or self.objective_kind != "peak_deceleration":
             return {}
         xl = state_layout(len(scene.legs))
@@ -256,7 +256,7 @@ class DesignProblem(_DesignSpace, _Constraints, _GradientCheck):
         found.sort(key=lambda item: -item[0])
         return [msg for _, msg in found], (found[0][0] if found else 0.0)
 
-    def _describe(self, b: _Block, k: int, value: float) -> str:
+    def _describe(self, b: Block, k: int, value: float) -> str:
         where = f"scenario `{b.scenario}`" if b.scenario else "design"
         leg = f", leg {b.leg}" if b.leg is not None else ""
         when = f" at t = {(k + 1) * b.dt:.4g} s (step {k + 1})" if b.dt else ""
@@ -412,7 +412,7 @@ class DesignProblem(_DesignSpace, _Constraints, _GradientCheck):
             elif callable(progress):
                 progress(entry)
 
-        callback = _IterationCallback(x0.size, self.lbg.size, on_iteration)
+        callback = IterationCallback(x0.size, self.lbg.size, on_iteration)
         solver = ca.nlpsol("design", "ipopt", getattr(self, "_compiled_nlp", self.nlp),
                            {"ipopt": options, "print_time": False,
                             "iteration_callback": callback})

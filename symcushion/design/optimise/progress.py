@@ -1,6 +1,6 @@
 """Progress of the Ipopt solve: a CasADi callback called once per iteration.
 
-Owns :class:`_IterationCallback`, which hands Ipopt's iterate to the
+Owns :class:`IterationCallback`, which hands Ipopt's iterate to the
 problem's progress handler. It must not change the iterate.
 """
 from __future__ import annotations
@@ -11,7 +11,7 @@ import numpy as np
 __all__: list = []
 
 
-class _IterationCallback(ca.Callback):
+class IterationCallback(ca.Callback):
     """Ipopt's intermediate callback: hands (x, f, g) to a Python function."""
 
     def __init__(self, nx, ng, handler):

@@ -21,9 +21,9 @@ import numpy as np
 
 from symcushion.legs.characteristics import PiecewiseLinear
 from symcushion.legs.curve_base import Curve
-from symcushion.design.optimise.geometry import _GeometryDesign
+from symcushion.design.optimise.geometry import GeometryDesign
 from symcushion.design.optimise.shape_points import branch_rate, shape_points
-from symcushion.design.optimise.spec import _real, CurveShape, DesignVariable
+from symcushion.design.optimise.spec import real_number, CurveShape, DesignVariable
 
 __all__ = ["ONSET_SLOPE_FRACTION"]
 
@@ -37,8 +37,8 @@ __all__ = ["ONSET_SLOPE_FRACTION"]
 ONSET_SLOPE_FRACTION = 0.1
 
 
-class _DesignSpace(_GeometryDesign):
-    """Design variables, curve shapes and (through :class:`_GeometryDesign`) the legs'
+class DesignSpace(GeometryDesign):
+    """Design variables, curve shapes and (through :class:`GeometryDesign`) the legs'
     geometry of a design problem (a mixin)."""
 
     def _resolve_variables(self, specs, geometry=()):
@@ -63,8 +63,8 @@ class _DesignSpace(_GeometryDesign):
                 raise TypeError(f"`variables[{i}]` must be a DesignVariable, got {spec!r}.")
             patterns = [spec.names] if isinstance(spec.names, str) else list(spec.names)
             excluded = [spec.exclude] if isinstance(spec.exclude, str) else list(spec.exclude)
-            lo = _real(f"variables[{i}].lower", spec.lower)
-            hi = _real(f"variables[{i}].upper", spec.upper)
+            lo = real_number(f"variables[{i}].lower", spec.lower)
+            hi = real_number(f"variables[{i}].upper", spec.upper)
             if lo > hi:
                 raise ValueError(f"design variables {patterns}: `lower` = {lo:g} > `upper` = "
                                  f"{hi:g}; swap the bounds.")
@@ -104,7 +104,7 @@ class _DesignSpace(_GeometryDesign):
                 lower.append(lo)
                 upper.append(hi)
             if spec.scale is not None:
-                sc = _real(f"variables[{i}].scale", spec.scale, positive=True)
+                sc = real_number(f"variables[{i}].scale", spec.scale, positive=True)
             else:
                 sc = float(np.max(np.abs(self.p_default[sum(groups.values(), [])])))
                 sc = sc if sc > 0 else 1.0

@@ -136,15 +136,15 @@ class Limits:
         for name in ("stroke", "beta", "gamma", "tilt", "rebound_speed", "deceleration"):
             value = getattr(self, name)
             if value is not None:
-                setattr(self, name, _real(f"limits.{name}", value, positive=True))
+                setattr(self, name, real_number(f"limits.{name}", value, positive=True))
         if self.sink_speed is not None:
-            self.sink_speed = _real("limits.sink_speed", self.sink_speed, nonnegative=True)
+            self.sink_speed = real_number("limits.sink_speed", self.sink_speed, nonnegative=True)
         if self.tilt is not None and self.tilt >= math.pi:
             raise ValueError(f"`limits.tilt` must be below π rad, got {self.tilt!r}; "
                              "give the largest allowed tilt in radians.")
 
 
-def _real(name, value, *, positive=False, nonnegative=False):
+def real_number(name, value, *, positive=False, nonnegative=False):
     if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
         raise TypeError(f"`{name}` must be a number, got {value!r}.")
     value = float(value)
@@ -158,7 +158,7 @@ def _real(name, value, *, positive=False, nonnegative=False):
 
 
 @dataclass
-class _Block:
+class Block:
     """A block of rows of the constraint vector, for reports."""
 
     kind: str            # 'epigraph', 'stroke', 'beta', 'gamma', 'tilt', 'final_speed', …
@@ -204,11 +204,11 @@ class Evaluation:
         return not self.violations
 
 
-def _leg_param_names(model) -> tuple:
+def leg_param_names(model) -> tuple:
     """The legs' curve parameters of a model's ``p`` (without the scene entries)."""
     return model.param_names[:model.params.n_leg_params]
 
 
-def _up(gravity):
+def up_direction(gravity):
     norm = float(np.linalg.norm(gravity))
     return -np.asarray(gravity, dtype=float) / norm if norm > 0 else np.array([0.0, 0.0, 1.0])

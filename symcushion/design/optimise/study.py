@@ -18,14 +18,15 @@ import numpy as np
 from symcushion.compiled.cbuild import find_compiler
 from symcushion.scheme.quaternion import quat_to_rot_np
 from symcushion.model.obstacles import closest_obstacle
-from symcushion.model.scene import _Table, read_toml, scene_from_dict
+from symcushion.model.scene import read_toml, scene_from_dict
+from symcushion.validation import Table
 from symcushion.model.scene_data import Scene
 from symcushion.scheme.touchdown import initial_state
 from symcushion.design.optimise.geometry import (GEOMETRY_QUANTITIES, GeometryVariable,
     PracticalLimits)
 from symcushion.design.optimise.problem import DesignProblem
 from symcushion.design.optimise.result import DesignResult
-from symcushion.design.optimise.spec import (_up, CurveShape, DesignVariable, Limits, OBJECTIVES,
+from symcushion.design.optimise.spec import (up_direction, CurveShape, DesignVariable, Limits, OBJECTIVES,
     Scenario)
 
 __all__ = ["Study", "load_study", "study_from_dict", "read_design_table", "run_study"]
@@ -39,7 +40,7 @@ else:  # pragma: no cover
 _PLACEMENT_ITERS = 20
 
 
-class _Fields(_Table):
+class StudyFields(Table):
     """A study-file table: the scene files' field checker, with ±inf allowed."""
 
     docs = "docs/optimise.md"
@@ -97,7 +98,7 @@ def load_study(path) -> Study:
 
 def study_from_dict(data: dict, source: str = "<dict>", base_dir=".") -> Study:
     """Build a :class:`Study` from the parsed contents of a study TOML file."""
-    top = _Fields(data, "", source)
+    top = StudyFields(data, "", source)
     st = top.get("study", kind="table")
     name = st.get("name", Path(source).stem, kind="string")
     description = st.get("description", "", kind="string")
@@ -139,7 +140,7 @@ def study_from_dict(data: dict, source: str = "<dict>", base_dir=".") -> Study:
 
     variables, shapes, geometry, practical = read_design_table(top.get("design", kind="table"))
 
-    lim = top.get("limits", kind="table") if top.has("limits") else _Fields({}, "limits", source)
+    lim = top.get("limits", kind="table") if top.has("limits") else StudyFields({}, "limits", source)
     top.used.add("limits")
     sink = lim.data.get("sink_speed", 0.0)
     lim.used.add("sink_speed")
@@ -265,7 +266,7 @@ def _smooth_tunable(scene: Scene, kink_width, rate_width):
                     c.rate_width = rate_width
 
 
-def _scenario(t: _Fields, base: Scene, scene_raw: dict, scene_source: str) -> Scenario:
+def _scenario(t: StudyFields, base: Scene, scene_raw: dict, scene_source: str) -> Scenario:
     name = t.get("name", kind="string")
     scene = base
     changes = {}
@@ -305,7 +306,7 @@ def _scenario(t: _Fields, base: Scene, scene_raw: dict, scene_source: str) -> Sc
 
 def _place(scene: Scene, body, clearance: float) -> np.ndarray:
     """Body position, moved along the vertical, whose lowest free foot is ``clearance`` up."""
-    up = _up(scene.gravity)
+    up = up_direction(scene.gravity)
     R = quat_to_rot_np(body.attitude)
     pos = np.array(body.position, dtype=float)
     for _ in range(_PLACEMENT_ITERS):

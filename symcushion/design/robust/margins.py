@@ -44,7 +44,7 @@ import casadi as ca
 import numpy as np
 
 from symcushion.envelope.cases import DECEL_FILTER_TIME
-from symcushion.scheme.layout import state_layout
+from symcushion.layout.vectors import state_layout
 from symcushion.scheme.measures import measures_function
 from symcushion.scheme.touchdown import StepModel
 

@@ -25,11 +25,11 @@ import numpy as np
 
 from symcushion.envelope.cases import case_params, initial_states, reach
 from symcushion.envelope.study import EnvelopeStudy
-from symcushion.design.optimise.gradient import _GradientCheck
+from symcushion.design.optimise.gradient import GradientCheck
 from symcushion.design.optimise.problem import IPOPT_DEFAULTS
-from symcushion.design.optimise.progress import _IterationCallback
-from symcushion.design.optimise.space import _DesignSpace
-from symcushion.design.optimise.spec import _Block, _leg_param_names, Limits, VIOLATION_TOL
+from symcushion.design.optimise.progress import IterationCallback
+from symcushion.design.optimise.space import DesignSpace
+from symcushion.design.optimise.spec import Block, leg_param_names, Limits, VIOLATION_TOL
 from symcushion.scheme.touchdown import build_model
 from symcushion.design.optimise.geometry import PRACTICAL_KINDS
 from symcushion.design.robust.evaluate import build_margins, design_margins, ScenarioRatios
@@ -50,7 +50,7 @@ _ACTIVE = 1e-6
 _IPOPT = {**IPOPT_DEFAULTS, "tol": 1e-6, "acceptable_tol": 1e-4, "max_iter": 100}
 
 
-class EnvelopeDesign(_DesignSpace, _GradientCheck):
+class EnvelopeDesign(DesignSpace, GradientCheck):
     """The scenario NLP of a design for the envelope.
 
     Parameters
@@ -116,7 +116,7 @@ class EnvelopeDesign(_DesignSpace, _GradientCheck):
         self.horizon = self.steps * scene.dt
         model = build_model(scene)
         self.model = model
-        self.param_names = _leg_param_names(model)
+        self.param_names = leg_param_names(model)
         self.legs = scene.legs
         self.p_default = np.concatenate([leg.param_values for leg in self.legs]) \
             if self.param_names else np.zeros(0)
@@ -207,7 +207,7 @@ class EnvelopeDesign(_DesignSpace, _GradientCheck):
                                      "and no design variable can change it.")
                 return
             start = sum(r.numel() for r in rows)
-            blocks.append(_Block(kind, scenario, leg, start, start + expr.numel(), lower,
+            blocks.append(Block(kind, scenario, leg, start, start + expr.numel(), lower,
                                  upper, scale, unit, dt, label))
             rows.append(expr / scale)
 
@@ -332,7 +332,7 @@ class EnvelopeDesign(_DesignSpace, _GradientCheck):
 
         options = dict(_IPOPT, **(ipopt or {}))
         opts = {"ipopt": options, "print_time": False,
-                "iteration_callback": _IterationCallback(x0.size, self.lbg.size, on_iteration)}
+                "iteration_callback": IterationCallback(x0.size, self.lbg.size, on_iteration)}
         solver = ca.nlpsol("robust_design", "ipopt", self.nlp, opts)
         sol = solver(x0=x0, lbx=lbx, ubx=ubx, lbg=self.lbg, ubg=self.ubg)
         stats = solver.stats()

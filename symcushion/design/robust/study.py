@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 
 from symcushion.envelope.runner import run_envelope
 from symcushion.envelope.study import EnvelopeStudy, study_from_dict as envelope_from_dict
-from symcushion.design.optimise.study import read_design_table, _Fields
+from symcushion.design.optimise.study import read_design_table, StudyFields
 from symcushion.model.scene import read_toml
 from symcushion.design.robust.problem import EnvelopeDesign
 from symcushion.design.robust.risk import (DEFAULT_ALPHA, DEFAULT_HORIZON, DEFAULT_SATURATION,
@@ -116,11 +116,11 @@ def robust_study_from_dict(data: dict, source: str = "<dict>") -> RobustStudy:
         raise ValueError(f"{source}: no `[design]` table; give `[[design.variables]]` (the "
                          "tunable curve parameters to design, docs/optimise.md).")
     envelope = envelope_from_dict(data, source)
-    variables, shapes, geometry, practical = read_design_table(_Fields(design, "design",
+    variables, shapes, geometry, practical = read_design_table(StudyFields(design, "design",
                                                                        source))
     if not isinstance(robust, dict):
         raise ValueError(f"{source}: `robust` must be a table, got {robust!r}.")
-    rb = _Fields(robust, "robust", source)
+    rb = StudyFields(robust, "robust", source)
     out = RobustStudy(
         name=envelope.name, envelope=envelope, variables=variables, shapes=shapes,
         geometry=geometry, practical=practical,

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from symcushion.legs.characteristics import Linear
-from symcushion.scheme.layout import state_layout
+from symcushion.layout.vectors import state_layout
 from symcushion.scheme.quaternion import quat_to_rot_np
 from symcushion.model.obstacles import Plane, Sphere
 from symcushion.model.scene_data import Body, Scene, symmetric_legs

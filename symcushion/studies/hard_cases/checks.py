@@ -14,7 +14,7 @@ import casadi as ca
 import numpy as np
 
 from symcushion.legs.characteristics import Linear
-from symcushion.scheme.layout import state_layout
+from symcushion.layout.vectors import state_layout
 from symcushion.scheme.quaternion import quat_to_rot, quat_to_rot_np
 from symcushion.model.obstacles import closest_obstacle
 from symcushion.model.scene_data import Scene

@@ -11,7 +11,7 @@ import time
 import numpy as np
 
 from symcushion.contact.args import METHODS
-from symcushion.scheme.layout import state_layout
+from symcushion.layout.vectors import state_layout
 from symcushion.scheme.touchdown import build_model, initial_state
 from symcushion.run.driver import simulate, trajectory_from
 

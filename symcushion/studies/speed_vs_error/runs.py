@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from symcushion.compiled.codegen import CompiledModel
-from symcushion.scheme.layout import state_layout
-from symcushion.scheme.layout_params import default_p
+from symcushion.layout.vectors import state_layout
+from symcushion.layout.params import default_p
 from symcushion.scheme.quaternion import quat_to_rot_np
 from symcushion.model.scene_data import Scene
 from symcushion.scheme.touchdown import initial_state

@@ -5,8 +5,8 @@ per-step output ``y`` of ``touchdown_step(x, p, dt)``: named fields with
 their size, unit and meaning, and the layouts that pack/unpack them for
 NumPy (1-D vectors, or 2-D arrays whose columns are steps) and for CasADi
 symbols and name the CSV columns. The machinery of named fields
-(:class:`Field`, :class:`VectorLayout`) is :mod:`symcushion.scheme.vector_fields`,
-the parameter vector ``p`` :mod:`symcushion.scheme.layout_params`; both are
+(:class:`Field`, :class:`VectorLayout`) is :mod:`symcushion.layout.fields`,
+the parameter vector ``p`` :mod:`symcushion.layout.params`; both are
 re-exported here. The quaternion kit the state's attitude needs is
 :mod:`symcushion.scheme.quaternion`.
 
@@ -31,11 +31,10 @@ quaternion), unit ``m``, ``m_s``, ``m_s2``, ``rad``, ``rad_s``, ``N`` or
 from __future__ import annotations
 
 # the parameter vector's layout, re-exported: the step and the measures read it here
-from symcushion.scheme.layout_params import (FOOTPAD_FIELD, LEG_GEOMETRY_FIELDS,
-    SCENE_PARAM_FIELDS, TRIPOD_GEOMETRY_FIELDS, ParamLayout, default_p, footpads, has_footpads,
-    param_layout)
+from symcushion.layout.params import (FOOTPAD_FIELD, LEG_GEOMETRY_FIELDS, SCENE_PARAM_FIELDS,
+    TRIPOD_GEOMETRY_FIELDS, ParamLayout, default_p, footpads, has_footpads, param_layout)
 # the machinery of named fields, re-exported: Field and VectorLayout were public here
-from symcushion.scheme.vector_fields import UNITS, WXYZ, XYZ, Field, VectorLayout, block_size
+from symcushion.layout.fields import UNITS, WXYZ, XYZ, Field, VectorLayout, block_size
 
 __all__ = ["Field", "VectorLayout", "BODY_STATE_FIELDS", "LEG_STATE_FIELDS", "BODY_OUT_FIELDS",
            "LEG_OUT_FIELDS", "BODY_STATE", "LEG_STATE", "BODY_OUT", "LEG_OUT", "MODES",

@@ -6,8 +6,8 @@ names :data:`XYZ` and :data:`WXYZ`, and :class:`VectorLayout` (a body block
 followed by one block per leg: offsets, pack/unpack for NumPy and CasADi,
 CSV columns), with the small helpers the parameter layout shares
 (:func:`block_size`, :func:`is_casadi`, :func:`take_rows`). It must not name
-the fields of any particular vector (``symcushion.scheme.layout`` names those of x
-and y, ``symcushion.scheme.layout_params`` those of p) nor know any physics.
+the fields of any particular vector (``symcushion.layout.vectors`` names those of x
+and y, ``symcushion.layout.params`` those of p) nor know any physics.
 """
 from __future__ import annotations
 

@@ -8,16 +8,16 @@ the legs' tunable curve parameters, the scene entries, then (with
 This module owns the fields of p (:data:`SCENE_PARAM_FIELDS`,
 :data:`LEG_GEOMETRY_FIELDS`, :data:`TRIPOD_GEOMETRY_FIELDS`,
 :data:`FOOTPAD_FIELD`), :class:`ParamLayout`, :func:`param_layout` and
-:func:`default_p`, all re-exported by ``symcushion.scheme.layout``. It must not
+:func:`default_p`, all re-exported by ``symcushion.layout.vectors``. It must not
 build a step or know the physics the entries feed; the state and output
-vectors are ``symcushion.scheme.layout``'s.
+vectors are ``symcushion.layout.vectors``'s.
 """
 from __future__ import annotations
 
 import casadi as ca
 import numpy as np
 
-from symcushion.scheme.vector_fields import XYZ, Field, block_size, is_casadi, take_rows
+from symcushion.layout.fields import XYZ, Field, block_size, is_casadi, take_rows
 
 __all__ = ["SCENE_PARAM_FIELDS", "LEG_GEOMETRY_FIELDS", "TRIPOD_GEOMETRY_FIELDS",
            "FOOTPAD_FIELD", "ParamLayout", "param_layout", "has_footpads", "footpads",
