@@ -98,7 +98,7 @@ def test_every_study_command_refuses_another_runs_results_before_the_work(
         tmp_path, monkeypatch, capsys, command, out, result):
     def no_work(*args, **kwargs):
         raise AssertionError("the work started before the output was checked")
-    for name in ("robust.study.run_robust_study", "reproduce.reproduce",
+    for name in ("design.robust.study.run_robust_study", "reproduce.reproduce",
                  "envelope.run_envelope"):
         monkeypatch.setattr(f"symcushion.{name}", no_work)
     (tmp_path / result).parent.mkdir(parents=True, exist_ok=True)

@@ -1,18 +1,19 @@
-"""Touchdown scenes as data: the body, the scene, the symmetric leg sets.
+"""Touchdown scenes as data: the scene that groups a model, a scheme and a time
+grid, and the symmetric leg sets.
 
-A :class:`Scene` is plain data: it says *what* is simulated — a rigid body
-(:class:`Body`) on N legs, obstacles, gravity, friction, method and step.
-How it is integrated lives in ``symcushion.simulate``.
+A :class:`Scene` is plain data, the grouping a scene file has: *what* is
+simulated (:class:`~symcushion.model.parts.Model`: a rigid :class:`Body` on N
+legs, obstacles, gravity, friction), *how* it is stepped
+(:class:`~symcushion.model.parts.Scheme`) and *when*
+(:class:`~symcushion.model.parts.TimeGrid`). The step is built from the model
+and the scheme (``symcushion.scheme.touchdown``); the driver takes the grid
+(``symcushion.run.driver``).
 
-Frames: the body frame has its origin at the centre of mass; legs are given in
-body coordinates. The attitude is a unit quaternion (w, x, y, z) mapping body
-to world coordinates.
-
-This module owns the dataclasses, the names of the step's options
-(``TANGENT_PLANES``, ``SLIP_RULES``, ``EVENT_RULES``, ``HYSTERESIS_LAWS``,
-``SCHEMES``) and :func:`symmetric_legs` / :func:`symmetric_tripods`. It must
-not read files or dictionaries (``symcushion.model.scene``, where users import
-scenes from, loads TOML and re-exports this module's public names).
+This module owns :class:`Scene`, the names of the leg schemes (``SCHEMES``) and
+:func:`symmetric_legs` / :func:`symmetric_tripods`; it re-exports the body and
+the scheme's choices. It must not check a part itself (the parts do), read files
+or dictionaries (``symcushion.model.scene``, where users import scenes from,
+loads TOML and re-exports this module's public names).
 """
 from __future__ import annotations
 
@@ -20,118 +21,43 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from symcushion.contact.args import METHODS
 from symcushion.legs.curve_base import Curve
-from symcushion.model.obstacles import Obstacle
 from symcushion.legs.strut import HingedStrut
 from symcushion.legs.tripod import InvertedTripod
-from symcushion.validation import choice, direction, integer, real, show, vector
+from symcushion.model.body import Body
+from symcushion.model.parts import (EVENT_RULES, HYSTERESIS_LAWS, LEG_SCHEMES, METHODS,
+    SCHEME_OPTIONS, SLIP_RULES, TANGENT_PLANES, Model, Scheme, TimeGrid, check_scheme)
+from symcushion.validation import integer, vector
 
-__all__ = ["Body", "Scene", "symmetric_legs", "symmetric_tripods", "TANGENT_PLANES",
-           "SLIP_RULES", "EVENT_RULES", "HYSTERESIS_LAWS", "SCHEMES", "LEG_SCHEMES"]
+__all__ = ["Body", "Scene", "Model", "Scheme", "TimeGrid", "symmetric_legs",
+           "symmetric_tripods", "TANGENT_PLANES", "SLIP_RULES", "EVENT_RULES",
+           "HYSTERESIS_LAWS", "SCHEMES", "LEG_SCHEMES", "METHODS"]
 
-
-#: Where a step replaces the obstacle by its tangent plane (§3): ``"start"``,
-#: at the foot's contact point at the start of the step (the literal reading,
-#: first order on curved obstacles: the force lags the normal by half a step);
-#: ``"end"``, a second contact step on the plane tangent at the end point the
-#: first predicted (second order, twice the contact cost).
-TANGENT_PLANES = ("start", "end")
-
-#: How the implicit contact step turns a sliding foot's slip direction over a
-#: step (``symcushion.contact.midpoint``): ``"backward"``, along the force of
-#: the end of the step (backward Euler: first order when the direction turns);
-#: ``"midpoint"``, along the fitted mean of the start and end forces (second
-#: order, a Newton correction after the backward-Euler step).
-SLIP_RULES = ("backward", "midpoint")
-
-#: What the touchdown step does at the events inside a step
-#: (``symcushion.scheme.branch_switch``): ``"none"``, the velocity-Verlet kick;
-#: ``"branch"``, the kick weighted at the located switch of each leg's axial
-#: loading/unloading branch (second order through the force jump);
-#: ``"lock"``, that and the stroke lock of ``symcushion.scheme.stroke_lock``: a leg
-#: whose foot sticks holds its stroke between the curves (SHAKE/RATTLE).
-EVENT_RULES = ("none", "branch", "lock")
-
-#: The absorbers' law between their loading and unloading curves:
-#: ``"sign"``, the printed P = P(δ, sign δ′) of (2.1) (the force jumps between
-#: the curves when the rate changes sign); ``"memory"``, the elastic band of
-#: ``symcushion.legs.absorber`` (a set per absorber in the state, a continuous force,
-#: crushing only at the loading curve's force; docs/absorbers.md).
-HYSTERESIS_LAWS = ("sign", "memory")
 
 #: Leg schemes: ``"strut"``, the strut on a spherical hinge of (2.1)
 #: (``symcushion.legs.strut``); ``"tripod"``, the inverted tripod of flown landers
 #: (``symcushion.legs.tripod``, docs/tripod.md).
 SCHEMES = ("strut", "tripod")
-LEG_SCHEMES = (HingedStrut, InvertedTripod)
 
 
 def _vec(name, value, size=3):
     return vector(name, value, (size,))
 
 
-def _positive(name, value, unit=""):
-    return real(name, value, positive=True, unit=unit)
-
-
-@dataclass
-class Body:
-    """The rigid body and its initial state.
-
-    Attributes
-    ----------
-    mass : float
-        kg, > 0.
-    inertia : ndarray, shape (3, 3)
-        Inertia tensor about the centre of mass, body axes (kg·m²); a 3-vector
-        is taken as the diagonal.
-    position : ndarray, shape (3,)
-        Initial centre of mass, world (m).
-    attitude : ndarray, shape (4,)
-        Initial unit quaternion (w, x, y, z), body → world.
-    velocity : ndarray, shape (3,)
-        Initial velocity, world (m/s).
-    angular_velocity : ndarray, shape (3,)
-        Initial angular velocity in body axes (rad/s).
-    """
-
-    mass: float
-    inertia: np.ndarray
-    position: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    attitude: np.ndarray = field(default_factory=lambda: np.array([1.0, 0, 0, 0]))
-    velocity: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    angular_velocity: np.ndarray = field(default_factory=lambda: np.zeros(3))
-
-    def __post_init__(self):
-        self.mass = _positive("body.mass", self.mass, "kg")
-        try:
-            inertia = vector("body.inertia", self.inertia, (3,))
-            inertia = np.diag(inertia)
-        except (TypeError, ValueError):
-            try:
-                inertia = vector("body.inertia", self.inertia, (3, 3))
-            except (TypeError, ValueError):
-                raise ValueError(f"`body.inertia` must be 3 numbers (the diagonal) or a 3×3 "
-                                 f"matrix in kg·m², got {show(self.inertia)}.") from None
-        if not np.allclose(inertia, inertia.T) or np.any(np.linalg.eigvalsh(inertia) <= 0):
-            raise ValueError(f"`body.inertia` must be symmetric positive definite, got "
-                             f"{inertia.tolist()}; give the principal moments (kg·m²).")
-        self.inertia = inertia
-        self.position = _vec("body.position", self.position)
-        self.attitude = direction("body.attitude", self.attitude, 4)
-        self.velocity = _vec("body.velocity", self.velocity)
-        self.angular_velocity = _vec("body.angular_velocity", self.angular_velocity)
-
-
 @dataclass
 class Scene:
-    """A touchdown: body, legs, obstacles, gravity, friction and time grid.
+    """A touchdown as a scene file groups it: the model (body, legs, obstacles, μ,
+    gravity), the scheme that steps it and its time grid, in one record.
+
+    ``scene.model``, ``scene.scheme`` and ``scene.grid`` give the three parts
+    (:mod:`symcushion.model.parts`); :meth:`from_parts` groups them again. The
+    checks are the parts' own: a Scene is valid when its three parts are and the
+    model takes the scheme (:func:`~symcushion.model.parts.check_scheme`).
 
     Attributes
     ----------
     body : Body
-    legs : list of HingedStrut
+    legs : list of HingedStrut or InvertedTripod
         Legs in body coordinates.
     obstacles : list of Obstacle
     mu : float
@@ -174,73 +100,43 @@ class Scene:
     hysteresis: str = "sign"
 
     def __post_init__(self):
-        if not isinstance(self.body, Body):
-            raise TypeError(f"`body` must be a Body, got {type(self.body).__name__}.")
-        self.legs = list(self.legs)
-        if not self.legs or not all(isinstance(leg, LEG_SCHEMES) for leg in self.legs):
-            raise ValueError("`legs` must be a non-empty list of legs (HingedStrut or "
-                             "InvertedTripod).")
-        self.obstacles = list(self.obstacles)
-        if not self.obstacles or not all(isinstance(o, Obstacle) for o in self.obstacles):
-            raise ValueError("`obstacles` must be a non-empty list of Obstacle.")
-        self.mu = real("mu", self.mu, nonnegative=True)
-        self.method = choice("method", self.method, METHODS)
-        self.tangent_plane = choice("tangent_plane", self.tangent_plane, TANGENT_PLANES)
-        self.slip = choice("slip", self.slip, SLIP_RULES)
-        self.events = choice("events", self.events, EVENT_RULES)
-        if self.events == "lock" and self.mu == 0:
-            raise ValueError("`events` = 'lock' holds the stroke of a leg whose foot sticks, and "
-                             "with mu = 0 no foot sticks. Set mu > 0 or events = 'branch'.")
-        if self.slip != "backward" and self.method != "implicit":
-            raise ValueError(f"`slip` = {self.slip!r} corrects the implicit contact step's slip; "
-                             f"`method` is {self.method!r}. Set method = 'implicit' or "
-                             "slip = 'backward'.")
-        self.hysteresis = choice("hysteresis", self.hysteresis, HYSTERESIS_LAWS)
-        self._check_dampers()
-        self._check_tripods()
-        if self.hysteresis == "memory":
-            self._check_memory()
-        self.dt = _positive("dt", self.dt, "s")
-        self.duration = _positive("duration", self.duration, "s")
-        self.gravity = _vec("gravity", self.gravity)
-        if not isinstance(self.name, str):
-            raise TypeError(f"`name` must be a string, got {show(self.name)}.")
+        model = Model(self.body, self.legs, self.obstacles, self.mu, self.gravity, self.name)
+        scheme = Scheme(**{name: getattr(self, name) for name in SCHEME_OPTIONS})
+        check_scheme(model, scheme)
+        grid = TimeGrid(self.dt, self.duration)
+        for part in (model, scheme, grid):
+            for name in part.__dataclass_fields__:
+                setattr(self, name, getattr(part, name))
 
-    def _check_dampers(self):
-        """Dampers act under the memory law, on any element."""
-        for j, leg in enumerate(self.legs):
-            for el in leg.elements:
-                if el.curve.has_damper and self.hysteresis != "memory":
-                    raise ValueError(f"leg {j}: `{el.name}` has a damper, which the printed "
-                                     "law P(δ, sign δ′) does not have; set hysteresis = "
-                                     "'memory'.")
+    @classmethod
+    def from_parts(cls, model: Model, scheme: Scheme | None = None,
+                   grid: TimeGrid | None = None) -> "Scene":
+        """The scene of a model, a scheme (default :class:`Scheme`'s) and a time grid
+        (default :class:`TimeGrid`'s)."""
+        parts = [model, Scheme() if scheme is None else scheme,
+                 TimeGrid() if grid is None else grid]
+        return cls(**{name: getattr(part, name) for part in parts
+                      for name in part.__dataclass_fields__})
 
-    def _check_tripods(self):
-        """An inverted tripod takes no event rule: those locate a strut's switches."""
-        tripods = [j for j, leg in enumerate(self.legs) if isinstance(leg, InvertedTripod)]
-        if tripods and self.events != "none":
-            raise ValueError(f"legs {tripods} are inverted tripods; `events` = "
-                             f"{self.events!r} locates the switches of a strut's axial element "
-                             "only. Set events = 'none'.")
+    @property
+    def model(self) -> Model:
+        """What is simulated: body, legs, obstacles, μ, gravity and name."""
+        return Model(self.body, self.legs, self.obstacles, self.mu, self.gravity, self.name)
 
-    def _check_memory(self):
-        """The memory law's conditions: no event rule, no hinge spring with memory."""
-        if self.events != "none":
-            raise ValueError(f"`events` = {self.events!r} locates the jumps of the printed law; "
-                             "`hysteresis` = 'memory' has a continuous force and needs none. "
-                             "Set events = 'none' (or hysteresis = 'sign').")
-        for j, leg in enumerate(self.legs):
-            for el in leg.elements:
-                if el.name != "S" and el.curve.unloading is not None:
-                    raise ValueError(
-                        f"leg {j}: `{el.name}` has an unloading curve; `hysteresis` = 'memory' "
-                        "keeps a set for the axial absorber only. Remove the hinge spring's "
-                        "unloading curve or set hysteresis = 'sign'.")
+    @property
+    def scheme(self) -> Scheme:
+        """How it is stepped: method, tangent plane, slip rule, events, hysteresis."""
+        return Scheme(**{name: getattr(self, name) for name in SCHEME_OPTIONS})
+
+    @property
+    def grid(self) -> TimeGrid:
+        """When: Δt and the duration."""
+        return TimeGrid(self.dt, self.duration)
 
     @property
     def steps(self) -> int:
         """Number of steps, round(duration/dt)."""
-        return max(1, int(round(self.duration / self.dt)))
+        return self.grid.steps
 
     def with_(self, **changes) -> "Scene":
         """A copy with some fields replaced (``scene.with_(method='paper')``). A new

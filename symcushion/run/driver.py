@@ -181,18 +181,20 @@ def simulate(scene, *, model: StepModel | None = None, x0=None, p=None,
         keep_rows)
     started = time.perf_counter()
     recorder = Recorder(model, x0, sink, monitor, progress, keep_rows)
+    grid = scene.grid                 # when: the step itself has Δt as an input
     try:
         if rtol is not None:
-            info = run_controlled(model, x0, p, rtol, atol, recorder, stability,
+            info = run_controlled(model, grid, x0, p, rtol, atol, recorder, stability,
                                   block_steps=BLOCK_STEPS)
         elif not adaptive:
-            info = run_fixed(model, x0, p, recorder.block, block_steps=BLOCK_STEPS)
+            info = run_fixed(model, grid, x0, p, recorder.block, block_steps=BLOCK_STEPS)
             info["rollout_seconds"] = time.perf_counter() - started
             if companion:
                 estimate_fixed(model, x0, p, info, recorder, estimate_rtol, companion,
                                block_steps=BLOCK_STEPS)
         else:
-            info = run_adaptive(model, x0, p, eps, recorder, stability, block_steps=BLOCK_STEPS)
+            info = run_adaptive(model, grid, x0, p, eps, recorder, stability,
+                                block_steps=BLOCK_STEPS)
     except BaseException as exc:
         # an interrupt (Ctrl-C, a termination) keeps what is complete: the
         # events and warnings of the blocks recorded so far go with the

@@ -18,6 +18,7 @@ import time
 
 import numpy as np
 
+from symcushion.model.parts import TimeGrid
 from symcushion.run.error_control import (COMPANIONS, PeakTracker, StepErrorNorm, estimate_report,
     next_step, step_pair_function)
 from symcushion.layout.vectors import output_layout
@@ -46,13 +47,10 @@ MAX_STEP_FRACTION = 1e-2
 MAX_STEP_DT = 2.0
 
 
-def run_fixed(model, x0, p, on_block, dt=None, steps=None, *, block_steps: int) -> dict:
-    """Roll out ``steps`` steps of ``dt`` (default the scene's) in blocks of
-    ``block_steps``, handing each block's times, states and outputs to
-    ``on_block(t, X, Y)``."""
-    scene = model.scene
-    dt = scene.dt if dt is None else dt
-    steps = scene.steps if steps is None else steps
+def run_fixed(model, grid: TimeGrid, x0, p, on_block, *, block_steps: int) -> dict:
+    """Roll out the ``grid``'s steps in blocks of ``block_steps``, handing each block's
+    times, states and outputs to ``on_block(t, X, Y)``."""
+    dt, steps = grid.dt, grid.steps
     done, x = 0, x0
     while done < steps:
         block = min(block_steps, steps - done)
@@ -76,7 +74,8 @@ def estimate_companion(estimate) -> str | None:
                      f"{estimate!r}; give e.g. estimate='fine' (docs/error-control.md).")
 
 
-def estimate_fixed(model, x0, p, info, recorder, rtol, companion="coarse", *, block_steps: int):
+def estimate_fixed(model, x0, p, info, recorder, rtol, companion="coarse", *,
+                   block_steps: int):
     """The error estimate of a finished fixed-Δt run (``info['error_estimate']``): a
     companion run over the same time with half as many steps (``"coarse"``) or
     twice as many (``"fine"``), Richardson's rule on the peaks and the final
@@ -90,8 +89,10 @@ def estimate_fixed(model, x0, p, info, recorder, rtol, companion="coarse", *, bl
     companion_dt = steps * dt / companion_steps
     peaks = PeakTracker(model.n_legs, model.scene.gravity)
     peaks.update(initial_output(model, x0)[:, None], np.zeros(1))
-    companion = run_fixed(model, x0, p, lambda t, X, Y: peaks.update(Y, t), companion_dt,
-                           companion_steps, block_steps=block_steps)
+    grid = TimeGrid(companion_dt, companion_steps * companion_dt)
+    assert grid.steps == companion_steps
+    companion = run_fixed(model, grid, x0, p, lambda t, X, Y: peaks.update(Y, t),
+                          block_steps=block_steps)
     report, messages = estimate_report(
         recorder.peaks.values, peaks.values, info["final_state"], companion["final_state"],
         dt=dt, companion_dt=companion_dt, scene=model.scene, rtol=rtol)
@@ -131,11 +132,13 @@ class _RowBuffer:
             self.ts, self.xs, self.ys = [], [], []
 
 
-def run_adaptive(model, x0, p, eps, recorder, stability=0.0, *, block_steps: int) -> dict:
-    """The §3 adaptive run: each step halved (at most ``MAX_HALVINGS`` times) while a
-    contact normal turns too fast over it (1 − n·n′ ≥ ``eps``); rows at every step."""
-    scene, step = model.scene, model.step
-    t_end, dt = scene.duration, scene.dt
+def run_adaptive(model, grid: TimeGrid, x0, p, eps, recorder, stability=0.0, *,
+                 block_steps: int) -> dict:
+    """The §3 adaptive run over the ``grid``'s duration from its Δt: each step halved
+    (at most ``MAX_HALVINGS`` times) while a contact normal turns too fast over it
+    (1 − n·n′ ≥ ``eps``); rows at every step."""
+    step = model.step
+    t_end, dt = grid.duration, grid.dt
     t, x, steps = 0.0, x0, 0
     rows = _RowBuffer(recorder, block_steps)
     last_contact, last_normal = None, None
@@ -173,17 +176,17 @@ def run_adaptive(model, x0, p, eps, recorder, stability=0.0, *, block_steps: int
     return info
 
 
-def run_controlled(model, x0, p, rtol, atol, recorder, stability=0.0, *,
+def run_controlled(model, grid: TimeGrid, x0, p, rtol, atol, recorder, stability=0.0, *,
                    block_steps: int) -> dict:
-    """Error-controlled stepping: step doubling on every pair of steps, the
-    standard controller (``symcushion.run.error_control``); rows at every step."""
-    scene = model.scene
+    """Error-controlled stepping over the ``grid``'s duration, its Δt the scale of the
+    steps: step doubling on every pair of steps, the standard controller
+    (``symcushion.run.error_control``); rows at every step."""
     pair = step_pair_function(model.step)
-    norm = StepErrorNorm(scene, rtol, atol, x0)
-    t_end = scene.duration
-    h_min = MIN_STEP_FRACTION * scene.dt
-    h_max = min(MAX_STEP_FRACTION * t_end, MAX_STEP_DT * scene.dt)
-    h, t, x = scene.dt / 2, 0.0, np.asarray(x0, float)
+    norm = StepErrorNorm(model.scene, rtol, atol, x0)
+    t_end = grid.duration
+    h_min = MIN_STEP_FRACTION * grid.dt
+    h_max = min(MAX_STEP_FRACTION * t_end, MAX_STEP_DT * grid.dt)
+    h, t, x = grid.dt / 2, 0.0, np.asarray(x0, float)
     rows = _RowBuffer(recorder, block_steps)
     steps = evaluations = rejected = floor = capped = 0
     dt_min, dt_max = np.inf, 0.0
@@ -216,7 +219,7 @@ def run_controlled(model, x0, p, rtol, atol, recorder, stability=0.0, *,
         steps += 2
         h = next_step(h, err)
     rows.flush()
-    info = {"dt": scene.dt, "steps": steps, "halvings": 0, "rtol": rtol, "atol": atol,
+    info = {"dt": grid.dt, "steps": steps, "halvings": 0, "rtol": rtol, "atol": atol,
             "final_state": x, "step_evaluations": evaluations, "rejected": rejected,
             "floor_steps": int(floor), "dt_min": dt_min, "dt_max": dt_max}
     if stability:

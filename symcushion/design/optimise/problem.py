@@ -141,8 +141,7 @@ class DesignProblem(DesignSpace, Constraints, GradientCheck):
     # -- construction -----------------------------------------------------------
     def _model(self, scene):
         key = (tuple(map(id, scene.legs)), tuple(map(id, scene.obstacles)), scene.mu,
-               scene.method, scene.tangent_plane, scene.slip, scene.events, scene.body.mass,
-               scene.body.inertia.tobytes(),
+               scene.scheme, scene.body.mass, scene.body.inertia.tobytes(),
                scene.gravity.tobytes())
         if key not in self._models:
             self._models[key] = build_model(scene)
