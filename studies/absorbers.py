@@ -41,6 +41,7 @@ import numpy as np
 from symcushion.layout.vectors import output_layout, state_layout
 from symcushion.model.scene import load_scene, read_toml, scene_from_dict
 from symcushion.scheme.touchdown import build_model, initial_state
+from symcushion.run.error_control import fitted_order
 
 HERE = Path(__file__).resolve().parent
 DAMPED = HERE / "lander_damped.toml"
@@ -106,12 +107,12 @@ def final_order(scene):
     ref = final[REFERENCE_STEP]
     travel = np.linalg.norm(ref - initial_state(scene)[:3])
     errors = np.array([np.linalg.norm(final[dt] - ref) / travel for dt in ORDER_STEPS])
-    return errors, float(np.polyfit(np.log(ORDER_STEPS), np.log(errors), 1)[0])
+    return errors, fitted_order(ORDER_STEPS, errors)
 
 
 def order_fit(steps, errors):
     """The slope of log error against log Δt."""
-    return float(np.polyfit(np.log(steps), np.log(errors), 1)[0])
+    return fitted_order(steps, errors)
 
 
 def event_errors(scene, steps=EVENT_STEPS, reference=REFERENCE_STEP):

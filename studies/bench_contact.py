@@ -96,8 +96,10 @@ def _unit(v):
     return v / np.linalg.norm(v)
 
 
-def plane_parallel_cases(rng, count):
-    """n, l, P0 in one plane; SPD D_p with that plane invariant."""
+def plane_parallel_cases(rng, count, mu_zero=None):
+    """n, l, P0 in one plane; SPD D_p with that plane invariant. ``mu_zero``: None,
+    μ = 0 in a tenth of the cases (drawn); True, in all; False, in none (the tests'
+    cases, tests/test_contact.py)."""
     cases = []
     for _ in range(count):
         n = _unit(rng.normal(size=3))
@@ -108,7 +110,10 @@ def plane_parallel_cases(rng, count):
         R2 = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
         B = R2 @ np.diag([1, 10 ** rng.uniform(0, 3)]) @ R2.T * 10 ** rng.uniform(0, 3)
         Dp = E @ B @ E.T + rng.uniform(0.1, 10) * B.max() * np.outer(y, y)
-        mu = 0.0 if rng.random() < 0.1 else rng.uniform(0.05, 2)
+        if mu_zero is None:
+            mu = 0.0 if rng.random() < 0.1 else rng.uniform(0.05, 2)
+        else:
+            mu = 0.0 if mu_zero else rng.uniform(0.05, 2)
         N0 = abs(rng.normal()) + 0.1
         fraction = rng.choice([-1.0, 1.0]) if rng.random() < 0.5 else rng.uniform(-1, 1)
         P0 = N0 * (n + fraction * mu * x)

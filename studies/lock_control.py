@@ -76,6 +76,8 @@ from pathlib import Path
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from symcushion.run.error_control import fitted_order
+
 MASS, INERTIA, GRAV = 150.0, 20.0, 9.81          # kg, kg m^2, m/s^2
 MINV = 1.0 / np.array([MASS, MASS, INERTIA])      # M^-1 (diagonal)
 B = np.array([[-0.5, -0.2], [0.5, -0.2]])         # hinges in the body frame (m)
@@ -410,7 +412,7 @@ def run(v0, grid, self_check=True):
 
 
 def slope(es):
-    return np.polyfit(np.log(STEPS), np.log(es), 1)[0]
+    return fitted_order(STEPS, es)
 
 
 def main():

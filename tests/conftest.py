@@ -9,9 +9,10 @@ generator is :func:`oracle_contact.random_cases` (pytest puts this folder on
 ``sys.path``, so the oracle module imports without path manipulation).
 
 The research studies (``research/``, e.g. ``from research import event_order``)
-are not part of the installed package; this file puts the repository root on
-``sys.path`` so that the tests import them from the checkout, the one place
-that path is set.
+and the benchmark scripts (``studies/``, e.g. ``from bench_contact import
+plane_parallel_cases``) are not part of the installed package; this file puts the
+repository root and ``studies/`` on ``sys.path`` so that the tests import them from
+the checkout, the one place those paths are set.
 """
 import subprocess
 import sys
@@ -19,10 +20,12 @@ import time
 from pathlib import Path
 
 # research/ lives beside the package, not in it, and is never installed: the
-# tests import it from this checkout (before any test module is collected).
+# tests import it from this checkout (before any test module is collected); the
+# scripts of studies/ share their case generators with the tests the same way.
 ROOT = Path(__file__).resolve().parents[1]
-if str(ROOT) not in sys.path:
-    sys.path.insert(0, str(ROOT))
+for folder in (ROOT, ROOT / "studies"):
+    if str(folder) not in sys.path:
+        sys.path.insert(0, str(folder))
 
 import numpy as np
 import pytest

@@ -23,6 +23,7 @@ from symcushion.layout.vectors import state_layout
 from symcushion.model.scene import SceneError, load_scene, read_toml, scene_from_dict
 from symcushion.scheme.touchdown import build_model, initial_state
 from symcushion.run.driver import simulate
+from symcushion.run.error_control import fitted_order
 
 from research import event_order   # not installed: tests/conftest.py puts it on sys.path
 
@@ -70,14 +71,14 @@ def test_the_switch_control_switches_once_per_leg(switch_runs):
 def test_second_order_through_a_branch_switch(switch_runs):
     errors, ref_error, _ = switch_runs["branch"]
     assert ref_error <= REF_SHARE * errors.min(), (ref_error, errors)
-    order = np.polyfit(np.log(DTS), np.log(errors), 1)[0]
+    order = fitted_order(DTS, errors)
     assert order >= MIN_SECOND_ORDER, (order, errors)
 
 
 def test_the_default_kick_is_not_second_order_there(switch_runs):
     errors, ref_error, _ = switch_runs["none"]
     assert ref_error <= REF_SHARE * errors.min(), (ref_error, errors)
-    order = np.polyfit(np.log(DTS), np.log(errors), 1)[0]
+    order = fitted_order(DTS, errors)
     assert order <= MAX_DEFAULT_ORDER, (order, errors)
 
 
@@ -184,7 +185,7 @@ def test_a_sliding_foot_drops_onto_its_unloading_curve_at_second_order():
     """
     velocity, foot = _drop_local_errors()
     for name, errors in (("velocity", velocity), ("foot", foot)):
-        order = np.polyfit(np.log(DROP_DTS), np.log(errors), 1)[0]
+        order = fitted_order(DROP_DTS, errors)
         assert order >= MIN_SECOND_ORDER, (name, order, errors)
 
 

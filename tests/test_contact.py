@@ -13,6 +13,7 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
+from bench_contact import plane_parallel_cases   # studies/: tests/conftest.py puts it on sys.path
 from symcushion.contact import (INPUT_NAMES, METHODS, OUTPUT_NAMES, ContactResult, contact_step,
     contact_step_expr, solve_contact, stack_inputs)
 
@@ -500,29 +501,6 @@ def test_item5_k2_continuous_at_c2_zero(method):
 # ---------------------------------------------------------------------------
 # robust vs implicit in plane-parallel cases
 # ---------------------------------------------------------------------------
-def plane_parallel_cases(rng, count, mu_zero=False):
-    """n, l, P0 in one plane, symmetric positive-definite D_p with that plane invariant."""
-    cases = []
-    for _ in range(count):
-        n = rng.normal(size=3)
-        n /= np.linalg.norm(n)
-        x = np.cross(n, rng.normal(size=3))
-        x /= np.linalg.norm(x)
-        y = np.cross(n, x)
-        E = np.stack([x, n], 1)
-        th = rng.uniform(0, np.pi)
-        R2 = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
-        B = R2 @ np.diag([1, 10 ** rng.uniform(0, 3)]) @ R2.T * 10 ** rng.uniform(0, 3)
-        Dp = E @ B @ E.T + rng.uniform(0.1, 10) * B.max() * np.outer(y, y)
-        mu = 0.0 if mu_zero else rng.uniform(0.05, 2)
-        N0 = abs(rng.normal()) + 0.1
-        fraction = rng.choice([-1.0, 1.0]) if rng.random() < 0.5 else rng.uniform(-1, 1)
-        P0 = N0 * (n + fraction * mu * x)
-        l = E @ rng.normal(size=2) * 0.01 * 10 ** rng.uniform(-2, 1)
-        cases.append((P0, Dp, n, l, mu, np.linalg.solve(Dp, P0)))
-    return cases
-
-
 def test_robust_agrees_with_implicit_plane_parallel():
     """Where a compressive Coulomb solution exists the two agree to round-off.
 
@@ -534,7 +512,7 @@ def test_robust_agrees_with_implicit_plane_parallel():
     cone with friction along the slip and the implicit step lifts off; those
     cases are excluded here and tested below.
     """
-    cases = plane_parallel_cases(np.random.default_rng(11), 2000)
+    cases = plane_parallel_cases(np.random.default_rng(11), 2000, mu_zero=False)
     ri, rr = batch("implicit", cases), batch("robust", cases)
     errors = []
     for i, (P0, Dp, n, l, mu, u0) in enumerate(cases):
@@ -561,7 +539,7 @@ def test_robust_lifts_off_where_no_coulomb_solution():
     tensile trial force, the rest (compressive trial) stays below 1 %
     (measured 10 of 2000), and never the other way round.
     """
-    cases = plane_parallel_cases(np.random.default_rng(12), 2000)
+    cases = plane_parallel_cases(np.random.default_rng(12), 2000, mu_zero=False)
     ri, rr = batch("implicit", cases), batch("robust", cases)
     assert (ri["contact"][0] == 0).sum() > 50            # the sample has such cases
     assert not ((rr["contact"][0] == 0) & (ri["contact"][0] == 1)).any()
@@ -595,7 +573,8 @@ def jacobians():
 
 def jacobian_cases():
     rng = np.random.default_rng(3)
-    cases = plane_parallel_cases(rng, 100) + plane_parallel_cases(rng, 30, mu_zero=True)
+    cases = (plane_parallel_cases(rng, 100, mu_zero=False)
+             + plane_parallel_cases(rng, 30, mu_zero=True))
     for _ in range(200):
         Dp = spd(rng, 10 ** rng.uniform(0, 8), 10 ** rng.uniform(0, 3))
         if rng.random() < 0.5:

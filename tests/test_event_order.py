@@ -30,6 +30,7 @@ from symcushion.layout.vectors import state_layout
 from symcushion.model.scene import read_toml, scene_from_dict
 from symcushion.scheme.touchdown import build_model
 from symcushion.run.driver import simulate
+from symcushion.run.error_control import fitted_order
 
 from research import event_order   # not installed: tests/conftest.py puts it on sys.path
 
@@ -81,7 +82,7 @@ def _errors(mu, kick_v, kick_w, dt_ref, slip="backward", settle=False):
 
 
 def _order(errors):
-    return float(np.polyfit(np.log(DTS), np.log(errors), 1)[0])
+    return fitted_order(DTS, errors)
 
 
 @pytest.mark.parametrize("kick_v, kick_w", [((0.0, 0.0, 0.2), (0.0, 0.0, 0.0)),
@@ -426,7 +427,7 @@ def _slope_lander_order(duration, **scene_options):
     errors = np.array([event_order.window_error(*run(dt), ref_t, ref_x, duration)
                        for dt in TOUCHDOWN_DTS])
     ref_error = event_order.window_error(check_t, check_x, ref_t, ref_x, duration)
-    return float(np.polyfit(np.log(TOUCHDOWN_DTS), np.log(errors), 1)[0]), errors, ref_error
+    return fitted_order(TOUCHDOWN_DTS, errors), errors, ref_error
 
 
 def test_the_slope_lander_touches_down_at_second_order():

@@ -21,6 +21,7 @@ from symcushion.legs.strut import HingedStrut
 from symcushion.scheme.touchdown import build_model, equilibrium_state, initial_state
 from symcushion.run.trajectory import contact_points
 from symcushion.legs.tripod import InvertedTripod
+from symcushion.run.error_control import fitted_order
 
 from conftest import make_sled
 from test_tripod import APOLLO, azimuth
@@ -125,7 +126,7 @@ def test_the_terrain_offset_error_falls_as_a_squared():
         for _ in range(50):                                      # ψ(X, 0, z) = 0 in z
             z -= float(psi([X, 0.0, z], a)) / float(ridge._offset()[1]([X, 0.0, z], a)[2])
         errors.append(abs(z - _true_offset_height(h, X, a)))
-    order = np.polyfit(np.log(pads), np.log(errors), 1)[0]
+    order = fitted_order(pads, errors)
     assert 1.8 < order < 2.3, (errors, order)
 
 

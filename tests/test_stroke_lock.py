@@ -28,6 +28,7 @@ from symcushion.run.driver import simulate
 from symcushion.scheme import touchdown_events as touchdown
 from symcushion.scheme.stroke_lock import (LOCKED, UNLOADING, axial_branches, newton_masked,
     skip_unless, solve_masked)
+from symcushion.run.error_control import fitted_order
 
 from research import event_order   # not installed: tests/conftest.py puts it on sys.path
 
@@ -75,7 +76,7 @@ def lock_runs():
 def test_second_order_through_locks(lock_runs):
     errors = lock_runs["errors"]
     assert lock_runs["ref_error"] <= REF_SHARE * errors.min(), (lock_runs["ref_error"], errors)
-    order = np.polyfit(np.log(DTS), np.log(errors), 1)[0]
+    order = fitted_order(DTS, errors)
     assert order >= MIN_SECOND_ORDER, (order, errors)
 
 
@@ -84,7 +85,7 @@ def test_the_located_switch_alone_is_not_second_order_there():
     model = build_model(scene)
     ref, _ = _final(scene, model, REF_DT)
     errors = [np.linalg.norm(_final(scene, model, dt)[0] - ref) for dt in DTS]
-    order = np.polyfit(np.log(DTS), np.log(errors), 1)[0]
+    order = fitted_order(DTS, errors)
     assert order <= MAX_SWITCH_ORDER, (order, errors)
 
 

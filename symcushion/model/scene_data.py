@@ -56,48 +56,30 @@ class Scene:
 
     Attributes
     ----------
-    body : Body
-    legs : list of HingedStrut or InvertedTripod
-        Legs in body coordinates.
-    obstacles : list of Obstacle
-    mu : float
-        Coulomb coefficient between every foot and every obstacle, ≥ 0. With
-        μ = 0 the simulator builds no friction code.
-    method : {'paper', 'robust', 'implicit'}
-        Contact step (``symcushion.contact``).
-    dt : float
-        Time step (s).
-    duration : float
-        Simulated time (s).
-    gravity : ndarray, shape (3,)
-        m/s², world.
-    name : str
-    tangent_plane : {'end', 'start'}
-        Where the obstacle is replaced by its tangent plane (:data:`TANGENT_PLANES`).
-    slip : {'backward', 'midpoint'}
-        The slip rule of the implicit contact step (:data:`SLIP_RULES`);
-        ``'midpoint'`` needs ``method='implicit'``.
-    events : {'none', 'branch', 'lock'}
-        What the body step does at the absorbers' branch switches inside a
-        step (:data:`EVENT_RULES`); ``'lock'`` needs ``mu > 0``.
-    hysteresis : {'sign', 'memory'}
-        The absorbers' law between their curves (:data:`HYSTERESIS_LAWS`);
-        ``'memory'`` needs ``events = 'none'`` (its force does not jump).
+    body, legs, obstacles, mu, gravity, name
+        The model's (:class:`~symcushion.model.parts.Model`).
+    method, tangent_plane, slip, events, hysteresis
+        The scheme's (:class:`~symcushion.model.parts.Scheme`; the choices are
+        :data:`METHODS`, :data:`TANGENT_PLANES`, :data:`SLIP_RULES`,
+        :data:`EVENT_RULES` and :data:`HYSTERESIS_LAWS`).
+    dt, duration
+        The time grid's (:class:`~symcushion.model.parts.TimeGrid`), in s.
     """
 
     body: Body
     legs: list
     obstacles: list
-    mu: float = 0.0
-    method: str = "implicit"
-    dt: float = 1e-3
-    duration: float = 1.0
+    # the defaults are the parts' own
+    mu: float = Model.mu
+    method: str = Scheme.method
+    dt: float = TimeGrid.dt
+    duration: float = TimeGrid.duration
     gravity: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, -9.81]))
-    name: str = "scene"
-    tangent_plane: str = "end"
-    slip: str = "backward"
-    events: str = "none"
-    hysteresis: str = "sign"
+    name: str = Model.name
+    tangent_plane: str = Scheme.tangent_plane
+    slip: str = Scheme.slip
+    events: str = Scheme.events
+    hysteresis: str = Scheme.hysteresis
 
     def __post_init__(self):
         model = Model(self.body, self.legs, self.obstacles, self.mu, self.gravity, self.name)

@@ -29,7 +29,7 @@ import numpy as np
 from symcushion.layout.vectors import output_layout, state_layout
 from symcushion.validation import real
 
-__all__ = ["PEAKS", "ESTIMATE_ORDER", "DEFAULT_ESTIMATE_RTOL", "DT_SAFETY", "MAX_SCALED_ERROR",
+__all__ = ["fitted_order", "PEAKS", "ESTIMATE_ORDER", "DEFAULT_ESTIMATE_RTOL", "DT_SAFETY", "MAX_SCALED_ERROR",
            "COMPANIONS",
            "CONTROL_ORDER",
            "CONTROL_SAFETY", "FAC_MIN", "FAC_MAX", "STROKE_FLOOR", "GRAVITY_FLOOR",
@@ -258,6 +258,16 @@ def peak_floors(scene) -> dict:
     g = max(float(np.linalg.norm(scene.gravity)), GRAVITY_FLOOR)
     return {"peak_specific_force": g, "peak_leg_force": scene.body.mass * g / len(scene.legs),
             "peak_stroke": STROKE_FLOOR * min(leg.length for leg in scene.legs)}
+
+
+def fitted_order(steps, errors) -> float:
+    """The order of convergence p of errors ≈ C·stepᵖ: the least-squares slope of
+    log(error) against log(step) (both positive, at least two points)."""
+    steps, errors = np.asarray(steps, dtype=float), np.asarray(errors, dtype=float)
+    if steps.size < 2 or steps.shape != errors.shape:
+        raise ValueError(f"`steps` and `errors` must be two or more values each, of one "
+                         f"shape; got shapes {steps.shape} and {errors.shape}.")
+    return float(np.polyfit(np.log(steps), np.log(errors), 1)[0])
 
 
 def richardson(value, companion, ratio: float, order: float = ESTIMATE_ORDER):

@@ -13,14 +13,23 @@ import numpy as np
 from symcushion.run.output_files import atomic_write_text, jsonable
 from symcushion.design.optimise.spec import Evaluation
 
-__all__ = ["DesignResult"]
+__all__ = ["DesignResult", "NamedDesign"]
 
 #: Number of worst violations listed in messages.
 _REPORT_WORST = 5
 
 
+class NamedDesign:
+    """The ``design`` of a result with ``var_names`` and ``theta``, by name."""
+
+    @property
+    def design(self) -> dict:
+        """{variable name: optimal value (SI)}."""
+        return dict(zip(self.var_names, map(float, self.theta)))
+
+
 @dataclass
-class DesignResult:
+class DesignResult(NamedDesign):
     """Outcome of :meth:`DesignProblem.solve`.
 
     Attributes
@@ -66,10 +75,6 @@ class DesignResult:
     objective_kind: str
     record: dict = field(default_factory=dict)
     meta: dict = field(default_factory=dict)
-
-    @property
-    def design(self) -> dict:
-        return dict(zip(self.var_names, map(float, self.theta)))
 
     @property
     def message(self) -> str:

@@ -10,11 +10,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from symcushion.design.optimise.result import NamedDesign
+
 __all__ = ["RobustResult"]
 
 
 @dataclass
-class RobustResult:
+class RobustResult(NamedDesign):
     """The outcome of :meth:`EnvelopeDesign.solve`.
 
     Attributes
@@ -58,11 +60,6 @@ class RobustResult:
     history: list = field(default_factory=list)
     timings: dict = field(default_factory=dict)
     geometry: dict = field(default_factory=dict)
-
-    @property
-    def design(self) -> dict:
-        """{variable name: optimal value}."""
-        return dict(zip(self.var_names, map(float, self.theta)))
 
     @property
     def success(self) -> bool:

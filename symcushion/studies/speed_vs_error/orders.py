@@ -13,6 +13,7 @@ import numpy as np
 
 
 from .grid import FLOOR_FACTOR, ORDER_DT_MAX, SCENES, VARIANTS
+from symcushion.run.error_control import fitted_order
 
 
 def convergence_order(dts, errs, floor: float = 0.0, dt_max: float = ORDER_DT_MAX):
@@ -27,7 +28,7 @@ def convergence_order(dts, errs, floor: float = 0.0, dt_max: float = ORDER_DT_MA
             & (errs > FLOOR_FACTOR * floor))
     if keep.sum() < 2:
         return float("nan"), (), int(keep.sum())
-    slope = np.polyfit(np.log(dts[keep]), np.log(errs[keep]), 1)[0]
+    slope = fitted_order(dts[keep], errs[keep])
     return float(slope), (float(dts[keep].min()), float(dts[keep].max())), int(keep.sum())
 
 
