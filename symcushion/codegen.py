@@ -49,7 +49,7 @@ import numpy as np
 from .cbuild import (CFLAGS, CODEGEN_OPTIONS, LIBRARY, MAIN, MANIFEST, PROGRAM,  # noqa: F401
                      WARNINGS, CachedBuild, _build, _fingerprint, compile_cached,
                      find_compiler)
-from .codegen_hoist import hoisted_step
+from .codegen_hoist import hoisted_step, states_only
 from .codegen_load import build_program, load_compiled  # noqa: F401 (re-exports, docs/codegen.md)
 from .codegen_sources import (Signature, generate_source, loop_rollout, manifest_entry,
                               rollout_source, write_header, write_scene_data)
@@ -62,8 +62,7 @@ from .touchdown import StepModel, build_model
 
 __all__ = ["CFLAGS", "CODEGEN_OPTIONS", "WARNINGS", "CachedBuild", "CompiledModel", "Generated",
            "build_program", "compile_cached", "compiled_model", "find_compiler", "generate",
-           "hoisted_step",
-           "load_compiled"]
+           "hoisted_step", "load_compiled", "states_only"]
 
 #: Base names of the two generated sources, compiled in parallel: the contact
 #: steps and struts, and the touchdown step with its rollout (the large one).
@@ -229,7 +228,8 @@ def _functions(scene: Scene | None, steps: int | None):
             "called in a C loop, column k of X and Y written by step k + 1 (the\n"
             "same bits as touchdown_step.mapaccum(N)); what depends on p alone is\n"
             "computed once (touchdown_step_parametric), each step runs the rest\n"
-            "(touchdown_step_core).",
+            "(touchdown_step_core; touchdown_step_states, the rest without y,\n"
+            "when Y is a null pointer).",
             _TOUCHDOWN_ARGS)
     for f in kernels + touchdown:
         _check_dense(f)
@@ -286,7 +286,7 @@ def generate(out_dir, scene=None, build: bool = False, steps: int | None = None,
     if touchdown:
         # the rollout's loop calls the step split at its parameters (hoisted_step)
         hoisted = hoisted_step(model.step)
-        groups[TOUCHDOWN] = (list(hoisted),
+        groups[TOUCHDOWN] = (list(hoisted) + [states_only(hoisted[2])],
                              *rollout_source(model, steps, hoisted[1].nnz_out(0)))
     sources, header_parts = {}, []
     for name, (fns, tail, declarations) in groups.items():

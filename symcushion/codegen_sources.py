@@ -22,7 +22,7 @@ import casadi as ca
 import numpy as np
 
 from .cbuild import CODEGEN_OPTIONS, TARGET_CLONES
-from .codegen_hoist import CORE, PARAMETRIC
+from .codegen_hoist import CORE, PARAMETRIC, STATES
 from .layout import default_p, state_columns
 from .scene import Scene
 from .touchdown import StepModel, initial_state
@@ -145,11 +145,12 @@ def rollout_source(model: StepModel, steps: int, nq: int) -> tuple[str, str]:
         f"const casadi_int* {ROLLOUT}_sparsity_out(casadi_int i);",
         f"int {ROLLOUT}_work{work};", f"int {ROLLOUT}_work_bytes{work};",
         f"#define {ROLLOUT}_MAX(a, b) ((a) > (b) ? (a) : (b))",
-        f"#define {ROLLOUT}_SZ_ARG (3 + {ROLLOUT}_MAX({CORE}_SZ_ARG, {PARAMETRIC}_SZ_ARG))",
-        f"#define {ROLLOUT}_SZ_RES (2 + {ROLLOUT}_MAX({CORE}_SZ_RES, {PARAMETRIC}_SZ_RES))",
-        f"#define {ROLLOUT}_SZ_IW {ROLLOUT}_MAX({CORE}_SZ_IW, {PARAMETRIC}_SZ_IW)",
-        f"#define {ROLLOUT}_SZ_W (2 * {model.nx} + {nq} + {ROLLOUT}_MAX({CORE}_SZ_W, "
-        f"{PARAMETRIC}_SZ_W))"]) + "\n"
+        *(f"#define {ROLLOUT}_STEP_SZ_{k} {ROLLOUT}_MAX({ROLLOUT}_MAX({CORE}_SZ_{k}, "
+          f"{STATES}_SZ_{k}), {PARAMETRIC}_SZ_{k})" for k in ("ARG", "RES", "IW", "W")),
+        f"#define {ROLLOUT}_SZ_ARG (3 + {ROLLOUT}_STEP_SZ_ARG)",
+        f"#define {ROLLOUT}_SZ_RES (2 + {ROLLOUT}_STEP_SZ_RES)",
+        f"#define {ROLLOUT}_SZ_IW {ROLLOUT}_STEP_SZ_IW",
+        f"#define {ROLLOUT}_SZ_W (2 * {model.nx} + {nq} + {ROLLOUT}_STEP_SZ_W)"]) + "\n"
     return "\n" + sizes + code, declarations
 
 
