@@ -228,8 +228,8 @@ def _functions(scene: Scene | None, steps: int | None):
             "called in a C loop, column k of X and Y written by step k + 1 (the\n"
             "same bits as touchdown_step.mapaccum(N)); what depends on p alone is\n"
             "computed once (touchdown_step_parametric), each step runs the rest\n"
-            "(touchdown_step_core; touchdown_step_states, the rest without y,\n"
-            "when Y is a null pointer).",
+            "(touchdown_step_core; where generated, touchdown_step_states, the\n"
+            "rest without y, when Y is a null pointer).",
             _TOUCHDOWN_ARGS)
     for f in kernels + touchdown:
         _check_dense(f)
@@ -286,8 +286,10 @@ def generate(out_dir, scene=None, build: bool = False, steps: int | None = None,
     if touchdown:
         # the rollout's loop calls the step split at its parameters (hoisted_step)
         hoisted = hoisted_step(model.step)
-        groups[TOUCHDOWN] = (list(hoisted) + [states_only(hoisted[2])],
-                             *rollout_source(model, steps, hoisted[1].nnz_out(0)))
+        states = states_only(hoisted[2])
+        groups[TOUCHDOWN] = (list(hoisted) + ([states] if states is not None else []),
+                             *rollout_source(model, steps, hoisted[1].nnz_out(0),
+                                             states is not None))
     sources, header_parts = {}, []
     for name, (fns, tail, declarations) in groups.items():
         src, text = generate_source(name, fns, out, tail, declarations,

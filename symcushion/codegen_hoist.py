@@ -15,7 +15,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-__all__ = ["hoisted_step", "states_only", "PARAMETRIC", "CORE", "STATES"]
+__all__ = ["hoisted_step", "states_only", "PARAMETRIC", "CORE", "STATES", "STATES_MIN_SAVING"]
 
 #: The step split for the rollout (:func:`hoisted_step`): what depends on p alone,
 #: computed once per rollout, and the rest, called once per step.
@@ -23,6 +23,12 @@ PARAMETRIC = "touchdown_step_parametric"
 CORE = "touchdown_step_core"
 #: The core without its output y, called by a rollout whose caller wants X only.
 STATES = "touchdown_step_states"
+#: :func:`states_only` is generated only where it leaves out at least this share of the
+#: core's SX instructions: it is a second copy of the step for gcc (the touchdown
+#: source's compile time grows by some 60 % on Fig. 3), which pays on Figs. 3-4 and
+#: lander_slope (14-15 % of the core, 5-10 % of the time per step) and not on the
+#: tutorial lander (3 %: its memory law's state needs most of what y reads).
+STATES_MIN_SAVING = 0.10
 
 
 def hoisted_step(step: ca.Function) -> tuple[ca.Function, ca.Function, ca.Function]:
@@ -59,9 +65,9 @@ def hoisted_step(step: ca.Function) -> tuple[ca.Function, ca.Function, ca.Functi
 
 
 
-def states_only(core: ca.Function) -> ca.Function:
+def states_only(core: ca.Function) -> ca.Function | None:
     """``touchdown_step_states(x, p, dt, q) -> x_next``: ``core`` without its per-step
-    outputs y.
+    outputs y; None where that leaves out less than STATES_MIN_SAVING of the core.
 
     A rollout asked for the states alone (a null Y, as the envelope's
     classification reads them) still paid for y in every step: the legs' world
@@ -73,5 +79,7 @@ def states_only(core: ca.Function) -> ca.Function:
     """
     x, p, dt, q = core.sx_in()
     x_next = core.call([x, p, dt, q])[0]
-    return ca.Function(STATES, [x, p, dt, q], [x_next], core.name_in(), [core.name_out(0)],
-                       {"cse": True})
+    states = ca.Function(STATES, [x, p, dt, q], [x_next], core.name_in(), [core.name_out(0)],
+                         {"cse": True})
+    saving = 1 - states.n_instructions() / core.n_instructions()
+    return states if saving >= STATES_MIN_SAVING else None
