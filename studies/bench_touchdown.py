@@ -23,7 +23,11 @@ N-column outputs, 0.1-0.4 µs per step, printed for comparison), best of
 BEST_OF calls; µs per step = thread CPU time / N. Before timing, one call's states and
 outputs must be finite and equal, bit for bit, to the uncompiled
 ``build_model(scene)`` rolled out with the same x0, p and Δt
-(``studies/bench_check.py``). Compile time: gcc's CPU time on the generated touchdown
+(``studies/bench_check.py``). Also timed: the rollout asked for its states
+alone (Y a null pointer: the compiled loop then runs the step without its
+per-step outputs, ``touchdown_step_states``), its X checked equal, bit for
+bit, to the full rollout's; the ratio on it is printed beside the full step's
+("states only"). Compile time: gcc's CPU time on the generated touchdown
 source alone with ``codegen.CFLAGS`` (-O3).
 MuJoCo: ``symcushion.peers.build_mjcf`` on the same scene (its default
 timestep, solver settings of docs/peers.md), the state set by one short
@@ -116,11 +120,29 @@ def check_symcushion(scene, rollout, steps: int) -> np.ndarray:
     return p
 
 
+def states_buffered(rollout, x0, p, dt: float):
+    """(evaluate, X): ``rollout`` bound to preallocated inputs and X, its output Y left a
+    null pointer, so that the compiled rollout runs the step without its per-step
+    outputs (``touchdown_step_states``, docs/codegen.md)."""
+    buffer, evaluate = rollout.buffer()
+    inputs = [np.array(x0, dtype=float), np.array(p, dtype=float), np.array([dt])]
+    X = np.zeros(rollout.nnz_out(0))
+    for i, a in enumerate(inputs):
+        buffer.set_arg(i, memoryview(a))
+    buffer.set_res(0, memoryview(X))
+
+    def run(_keep=(buffer, inputs)):          # the buffers outlive the closure
+        evaluate()
+
+    return run, X
+
+
 def symcushion_timer(scene, folder: Path):
     """(timer, steps, gcc CPU s of the touchdown source, SX instructions): ``timer()``
     runs the checked compiled rollout once into preallocated arrays and returns its
     (wall, thread CPU) seconds; ``timer(call=True)`` times a plain call (outputs
-    allocated by CasADi)."""
+    allocated by CasADi), ``timer(states=True)`` the rollout asked for X alone
+    (checked equal to the full rollout's X, bit for bit)."""
     steps = int(round(SECONDS / scene.dt))
     model = compiled_model(scene, folder, steps=steps)
     x0 = initial_state(scene)
@@ -132,11 +154,18 @@ def symcushion_timer(scene, folder: Path):
     check_equal(BENCH, f"{scene.name} rollout evaluated into buffers: X", outputs[0], X_ref,
                 rtol=BITWISE, reference_name="the checked rollout")
 
-    def timer(call: bool = False, _keep=outputs) -> float:
+    states_only, X_only = states_buffered(rollout, x0, p, scene.dt)
+    states_only()
+    check_equal(BENCH, f"{scene.name} rollout without Y (touchdown_step_states): X", X_only,
+                X_ref, rtol=BITWISE, reference_name="the checked rollout")
+
+    def timer(call: bool = False, states: bool = False, _keep=(outputs, X_only)) -> float:
         # the buffers hold raw pointers: their arrays must live as long as the timer
         start, cpu = time.perf_counter(), time.thread_time()
         if call:
             rollout(x0, p, scene.dt)
+        elif states:
+            states_only()
         else:
             evaluate()
         return time.perf_counter() - start, time.thread_time() - cpu
@@ -243,13 +272,15 @@ def measure(scene, folder: Path) -> dict:
     thread CPU time (and the ratio of the best wall times, for comparison)."""
     sym, n_sym, gcc, instr = symcushion_timer(scene, folder)
     mj, n_mj, h = mujoco_timer(mujoco_scene(scene))
-    wall = dict(sym=np.inf, call=np.inf, mj=np.inf)
+    wall = dict(sym=np.inf, call=np.inf, states=np.inf, mj=np.inf)
     best = dict(wall)                    # thread CPU time
     for _ in range(BEST_OF):
-        for key, run in (("sym", sym), ("mj", mj), ("call", lambda: sym(call=True))):
+        for key, run in (("sym", sym), ("mj", mj), ("call", lambda: sym(call=True)),
+                         ("states", lambda: sym(states=True))):
             w, c = run()
             wall[key], best[key] = min(wall[key], w), min(best[key], c)
     return dict(us=1e6 * best["sym"] / n_sym, us_call=1e6 * best["call"] / n_sym,
+                us_states=1e6 * best["states"] / n_sym,
                 mj=1e6 * best["mj"] / n_mj, h=h, gcc=gcc, instr=instr,
                 wall_ratio=(wall["mj"] / n_mj) / (wall["sym"] / n_sym))
 
@@ -266,13 +297,14 @@ def main() -> None:
             scene = scene.with_(duration=SECONDS)
             rows.append((label, scene, target, measure(scene, Path(tmp) / label.replace(". ", "").replace(" ", "_"))))
     print("| scene | method | μ | SX instr. (step) | gcc -O3 CPU s | symcushion µs/step "
-          "(plain call) | MuJoCo µs/step (h) | MuJoCo/symcushion per step | target "
-          "| (wall-clock ratio) |")
-    print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|")
+          "(plain call) | states only µs/step | MuJoCo µs/step (h) | MuJoCo/symcushion "
+          "per step | states only | target | (wall-clock ratio) |")
+    print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for label, scene, target, m in rows:
         print(f"| {label} | {scene.method} | {scene.mu:g} | {m['instr']:,} | {m['gcc']:.1f} | "
-              f"{m['us']:.2f} ({m['us_call']:.2f}) | {m['mj']:.2f} ({m['h']:g} s) | "
-              f"{m['mj'] / m['us']:.2f} | ≥ {target:g} | ({m['wall_ratio']:.2f}) |")
+              f"{m['us']:.2f} ({m['us_call']:.2f}) | {m['us_states']:.2f} | "
+              f"{m['mj']:.2f} ({m['h']:g} s) | {m['mj'] / m['us']:.2f} | "
+              f"{m['mj'] / m['us_states']:.2f} | ≥ {target:g} | ({m['wall_ratio']:.2f}) |")
     cases = spatial_cases(np.random.default_rng(2024), NATIVE_CASES)
     called = native_ratio(cases, called=True)
     implicit, robust = called["contact_step_implicit"], called["contact_step_robust"]

@@ -173,6 +173,26 @@ def test_hoisted_step_is_the_step(scene):
         for got in (whole(x, p, scene.dt), core(x, p, scene.dt, q)):
             for a, b in zip(got, ref):
                 assert np.array_equal(np.asarray(a), np.asarray(b)), f"case {i}"
+        x_next = codegen.states_only(core)(x, p, scene.dt, q)
+        assert np.array_equal(np.asarray(x_next), np.asarray(ref[0])), f"states, case {i}"
+
+
+def test_rollout_without_outputs_gives_the_same_states(built, scene):
+    """The compiled rollout called with a null Y runs the step without its outputs
+    (touchdown_step_states): the same X, bit for bit."""
+    _, fns = built
+    rollout = fns["touchdown_rollout"]
+    model = build_model(scene)
+    inputs = [np.asarray(initial_state(scene), dtype=float),
+              np.asarray(model.default_p, dtype=float), np.array([scene.dt])]
+    X, _ = rollout(*inputs)
+    buffer, evaluate = rollout.buffer()
+    X_only = np.zeros(rollout.nnz_out(0))
+    for i, a in enumerate(inputs):
+        buffer.set_arg(i, memoryview(a))
+    buffer.set_res(0, memoryview(X_only))           # Y left a null pointer
+    evaluate()
+    assert np.array_equal(X_only, np.asarray(X).ravel(order="F"))
 
 
 def test_compiled_model_simulates_like_the_vm(built, scene):

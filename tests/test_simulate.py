@@ -272,9 +272,8 @@ def test_simulate_runs_the_given_scene_with_a_model_built_from_another():
     assert traj.t.size == 21
 
 
-def test_symcushion_simulate_is_callable_after_the_submodule_is_imported():
+def test_symcushion_simulate_is_the_driver_function():
     import symcushion
-    import symcushion.simulate  # noqa: F401  (binds the package attribute to the module)
 
     scene = symcushion.load_scene(ROOT / "studies" / "fig3.toml").with_(duration=0.005)
     traj = symcushion.simulate(scene, monitor=False)

@@ -48,7 +48,7 @@ import numpy as np
 
 from symcushion.compiled.cbuild import (CFLAGS, CODEGEN_OPTIONS, LIBRARY, MAIN, MANIFEST, PROGRAM,
     WARNINGS, CachedBuild, build_sources, build_fingerprint, compile_cached, find_compiler)
-from symcushion.compiled.codegen_hoist import hoisted_step
+from symcushion.compiled.codegen_hoist import hoisted_step, states_only
 from symcushion.compiled.codegen_load import build_program, load_compiled  # noqa: F401 (re-exports, docs/codegen.md)
 from symcushion.compiled.codegen_sources import (Signature, generate_source, loop_rollout,
     manifest_entry, rollout_source, write_header, write_scene_data)
@@ -61,8 +61,7 @@ from symcushion.scheme.touchdown import StepModel, build_model
 
 __all__ = ["CFLAGS", "CODEGEN_OPTIONS", "WARNINGS", "CachedBuild", "CompiledModel", "Generated",
            "build_program", "compile_cached", "compiled_model", "find_compiler", "generate",
-           "hoisted_step",
-           "load_compiled"]
+           "hoisted_step", "load_compiled", "states_only"]
 
 #: Base names of the two generated sources, compiled in parallel: the contact
 #: steps and struts, and the touchdown step with its rollout (the large one).
@@ -228,7 +227,8 @@ def _functions(scene: Scene | None, steps: int | None):
             "called in a C loop, column k of X and Y written by step k + 1 (the\n"
             "same bits as touchdown_step.mapaccum(N)); what depends on p alone is\n"
             "computed once (touchdown_step_parametric), each step runs the rest\n"
-            "(touchdown_step_core).",
+            "(touchdown_step_core; where generated, touchdown_step_states, the\n"
+            "rest without y, when Y is a null pointer).",
             _TOUCHDOWN_ARGS)
     for f in kernels + touchdown:
         _check_dense(f)
@@ -285,8 +285,10 @@ def generate(out_dir, scene=None, build: bool = False, steps: int | None = None,
     if touchdown:
         # the rollout's loop calls the step split at its parameters (hoisted_step)
         hoisted = hoisted_step(model.step)
-        groups[TOUCHDOWN] = (list(hoisted),
-                             *rollout_source(model, steps, hoisted[1].nnz_out(0)))
+        states = states_only(hoisted[2])
+        groups[TOUCHDOWN] = (list(hoisted) + ([states] if states is not None else []),
+                             *rollout_source(model, steps, hoisted[1].nnz_out(0),
+                                             states is not None))
     sources, header_parts = {}, []
     for name, (fns, tail, declarations) in groups.items():
         src, text = generate_source(name, fns, out, tail, declarations,
@@ -348,7 +350,7 @@ def generate(out_dir, scene=None, build: bool = False, steps: int | None = None,
 # ---------------------------------------------------------------------------
 @dataclass
 class CompiledModel(StepModel):
-    """A :class:`~symcushion.simulate.StepModel` whose step and rollout are compiled.
+    """A :class:`~symcushion.scheme.touchdown.StepModel` whose step and rollout are compiled.
 
     ``step`` is ``touchdown_step`` loaded from ``library``; ``rollout(N)`` is
     the compiled ``touchdown_rollout`` when N equals ``compiled_steps`` and

@@ -22,7 +22,7 @@ import casadi as ca
 import numpy as np
 
 from symcushion.compiled.cbuild import CODEGEN_OPTIONS, TARGET_CLONES
-from symcushion.compiled.codegen_hoist import CORE, PARAMETRIC
+from symcushion.compiled.codegen_hoist import CORE, PARAMETRIC, STATES
 from symcushion.layout.vectors import default_p, state_columns
 from symcushion.model.scene import Scene
 from symcushion.scheme.touchdown import StepModel, initial_state
@@ -124,12 +124,23 @@ def generate_source(name: str, functions, out_dir: Path, tail: str = "",
     return source, text
 
 
-def rollout_source(model: StepModel, steps: int, nq: int) -> tuple[str, str]:
+def rollout_source(model: StepModel, steps: int, nq: int,
+                   states: bool = False) -> tuple[str, str]:
     """(C code, declarations) of ``touchdown_rollout``: symcushion/compiled/c/rollout.c with the
-    sizes of this step, ``nq`` values of p alone (:func:`hoisted_step`) and N = ``steps``."""
+    sizes of this step, ``nq`` values of p alone (:func:`hoisted_step`) and N = ``steps``;
+    ``states``: the source also holds ``touchdown_step_states`` (:func:`states_only`),
+    which the loop runs when Y is not wanted."""
     sizes = (f"#define ROLLOUT_NX {model.nx}\n#define ROLLOUT_NY {model.ny}\n"
              f"#define ROLLOUT_NP {model.np}\n#define ROLLOUT_NQ {nq}\n"
-             f"#define ROLLOUT_STEPS {steps}\n")
+             f"#define ROLLOUT_STEPS {steps}\n#define ROLLOUT_STATES {int(states)}\n")
+    # the work of the Functions the loop calls
+    called = (CORE, STATES, PARAMETRIC) if states else (CORE, PARAMETRIC)
+
+    def largest(k):
+        most = f"{called[-1]}_SZ_{k}"
+        for name in called[:-1]:
+            most = f"{ROLLOUT}_MAX({name}_SZ_{k}, {most})"
+        return most
     code = (Path(__file__).parent / "c" / ROLLOUT_SOURCE).read_text()
     args = ("(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, "
             "int mem)")
@@ -145,11 +156,11 @@ def rollout_source(model: StepModel, steps: int, nq: int) -> tuple[str, str]:
         f"const casadi_int* {ROLLOUT}_sparsity_out(casadi_int i);",
         f"int {ROLLOUT}_work{work};", f"int {ROLLOUT}_work_bytes{work};",
         f"#define {ROLLOUT}_MAX(a, b) ((a) > (b) ? (a) : (b))",
-        f"#define {ROLLOUT}_SZ_ARG (3 + {ROLLOUT}_MAX({CORE}_SZ_ARG, {PARAMETRIC}_SZ_ARG))",
-        f"#define {ROLLOUT}_SZ_RES (2 + {ROLLOUT}_MAX({CORE}_SZ_RES, {PARAMETRIC}_SZ_RES))",
-        f"#define {ROLLOUT}_SZ_IW {ROLLOUT}_MAX({CORE}_SZ_IW, {PARAMETRIC}_SZ_IW)",
-        f"#define {ROLLOUT}_SZ_W (2 * {model.nx} + {nq} + {ROLLOUT}_MAX({CORE}_SZ_W, "
-        f"{PARAMETRIC}_SZ_W))"]) + "\n"
+        *(f"#define {ROLLOUT}_STEP_SZ_{k} {largest(k)}" for k in ("ARG", "RES", "IW", "W")),
+        f"#define {ROLLOUT}_SZ_ARG (3 + {ROLLOUT}_STEP_SZ_ARG)",
+        f"#define {ROLLOUT}_SZ_RES (2 + {ROLLOUT}_STEP_SZ_RES)",
+        f"#define {ROLLOUT}_SZ_IW {ROLLOUT}_STEP_SZ_IW",
+        f"#define {ROLLOUT}_SZ_W (2 * {model.nx} + {nq} + {ROLLOUT}_STEP_SZ_W)"]) + "\n"
     return "\n" + sizes + code, declarations
 
 

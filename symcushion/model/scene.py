@@ -8,7 +8,7 @@ invalid one is reported with its path, its value and what is allowed.
 This module owns the reading: :func:`read_toml`, :func:`scene_from_dict`,
 :func:`load_scene` and the tables of keys, curve types and obstacle types;
 it is where users import scenes from. It must not define what a scene is
-(``symcushion.model.scene_data``) nor how it is integrated (``symcushion.simulate``).
+(``symcushion.model.scene_data``) nor how it is integrated (``symcushion.run.driver``).
 """
 from __future__ import annotations
 

@@ -15,9 +15,13 @@
  * touchdown_step_parametric(p) -> q once, the values of the step that depend on
  * p alone (ROLLOUT_NQ of them), then touchdown_step_core(x, p, dt, q) in the
  * loop, the rest of the step. The two execute the step's own operations, so
- * the results are those of touchdown_step, bit for bit.
+ * the results are those of touchdown_step, bit for bit. Where ROLLOUT_STATES is
+ * 1, a call with a null Y runs touchdown_step_states instead of
+ * touchdown_step_core: the core cut at x_next, without the per-step outputs
+ * (the same operations for x_next, so X is the same bits; generated only where
+ * the outputs are a tenth of the core or more, symcushion.codegen_hoist).
  *
- * Work: the larger of the two Functions' arg, res, iw and w after this
+ * Work: the largest of the three Functions' arg, res, iw and w after this
  * function's own (3 inputs, 2 outputs), two states for a call that does not
  * want X, and q.
  */
@@ -54,6 +58,13 @@ CASADI_SYMBOL_EXPORT int touchdown_rollout(const casadi_real** arg, casadi_real*
     arg1[0] = x;
     res1[0] = x_next;
     res1[1] = Y ? Y + k * ROLLOUT_NY : 0;
+#if ROLLOUT_STATES
+    if (!Y) {
+      if (touchdown_step_states(arg1, res1, iw, w, 0)) return 1;
+      x = x_next;
+      continue;
+    }
+#endif
     if (touchdown_step_core(arg1, res1, iw, w, 0)) return 1;
     x = x_next;
   }
@@ -65,10 +76,16 @@ CASADI_SYMBOL_EXPORT void touchdown_rollout_release(int mem) { (void)mem; }
 CASADI_SYMBOL_EXPORT void touchdown_rollout_incref(void) {
   touchdown_step_parametric_incref();
   touchdown_step_core_incref();
+#if ROLLOUT_STATES
+  touchdown_step_states_incref();
+#endif
 }
 CASADI_SYMBOL_EXPORT void touchdown_rollout_decref(void) {
   touchdown_step_parametric_decref();
   touchdown_step_core_decref();
+#if ROLLOUT_STATES
+  touchdown_step_states_decref();
+#endif
 }
 CASADI_SYMBOL_EXPORT casadi_int touchdown_rollout_n_in(void) { return 3; }
 CASADI_SYMBOL_EXPORT casadi_int touchdown_rollout_n_out(void) { return 2; }
@@ -114,13 +131,19 @@ CASADI_SYMBOL_EXPORT const casadi_int* touchdown_rollout_sparsity_out(casadi_int
 
 CASADI_SYMBOL_EXPORT int touchdown_rollout_work(casadi_int *sz_arg, casadi_int* sz_res,
                                                 casadi_int *sz_iw, casadi_int *sz_w) {
-  casadi_int step_arg, step_res, step_iw, step_w, par_arg, par_res, par_iw, par_w;
-  touchdown_step_core_work(&step_arg, &step_res, &step_iw, &step_w);
-  touchdown_step_parametric_work(&par_arg, &par_res, &par_iw, &par_w);
-  if (sz_arg) *sz_arg = 3 + (step_arg > par_arg ? step_arg : par_arg);
-  if (sz_res) *sz_res = 2 + (step_res > par_res ? step_res : par_res);
-  if (sz_iw) *sz_iw = step_iw > par_iw ? step_iw : par_iw;
-  if (sz_w) *sz_w = 2 * ROLLOUT_NX + ROLLOUT_NQ + (step_w > par_w ? step_w : par_w);
+  casadi_int most[4] = {0, 0, 0, 0}, one[4], f, i;
+  for (f = 0; f < 3; ++f) {
+    if (f == 0) touchdown_step_core_work(one, one + 1, one + 2, one + 3);
+#if ROLLOUT_STATES
+    if (f == 1) touchdown_step_states_work(one, one + 1, one + 2, one + 3);
+#endif
+    if (f == 2) touchdown_step_parametric_work(one, one + 1, one + 2, one + 3);
+    for (i = 0; i < 4; ++i) if (one[i] > most[i]) most[i] = one[i];
+  }
+  if (sz_arg) *sz_arg = 3 + most[0];
+  if (sz_res) *sz_res = 2 + most[1];
+  if (sz_iw) *sz_iw = most[2];
+  if (sz_w) *sz_w = 2 * ROLLOUT_NX + ROLLOUT_NQ + most[3];
   return 0;
 }
 
