@@ -85,3 +85,17 @@ def test_every_valid_scheme_builds_and_steps():
         sizes.setdefault(rest, set()).add(tuple(step.graph_size().values()))
     assert all(len(v) == 1 for v in sizes.values())       # the method adds no graph
     assert len({v.pop() for v in sizes.values()}) == len(sizes) == 16
+
+
+def test_a_step_is_built_from_a_model_and_a_scheme_alone():
+    model, scheme = _model(0.4), Scheme(slip="midpoint")
+    from_parts = build_model(model, scheme=scheme)
+    from_scene = build_model(Scene.from_parts(model, scheme, TimeGrid(2e-4, 0.01)))
+    x0 = initial_state(from_scene.scene)
+    a = from_parts.step(x0, from_parts.default_p, 1e-3)
+    b = from_scene.step(x0, from_scene.default_p, 1e-3)
+    assert all(np.array_equal(np.asarray(u), np.asarray(v)) for u, v in zip(a, b))
+    with pytest.raises(ValueError, match="has its own"):
+        build_model(from_scene.scene, scheme=scheme)
+    with pytest.raises(TypeError, match="must be a Scheme"):
+        build_model(model, scheme="implicit")

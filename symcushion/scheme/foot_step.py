@@ -103,9 +103,11 @@ class FeetStep:
 
     Parameters
     ----------
-    scene : Scene
-        Its obstacles, contact ``method``, ``tangent_plane``, ``slip`` and
-        ``events``.
+    model : Model
+        Its obstacles and μ (:class:`~symcushion.model.parts.Model`).
+    scheme : Scheme
+        The contact ``method``, ``tangent_plane``, ``slip`` and ``events``
+        (:class:`~symcushion.model.parts.Scheme`).
     poses : StepPoses
     mu : casadi.SX or float
         The Coulomb coefficient (0.0 for a frictionless scene).
@@ -120,12 +122,12 @@ class FeetStep:
         SX Functions they run.
     """
 
-    def __init__(self, scene, poses: StepPoses, mu, step_inputs):
-        self.scene, self.poses, self.mu = scene, poses, mu
-        self.friction = scene.mu > 0
+    def __init__(self, model, scheme, poses: StepPoses, mu, step_inputs):
+        self.model, self.scheme, self.poses, self.mu = model, scheme, poses, mu
+        self.friction = model.mu > 0
         # a curved obstacle turns the tangent plane between a step's predicted and final
         # foot points
-        self.curved = not all(isinstance(o, Plane) for o in scene.obstacles)
+        self.curved = not all(isinstance(o, Plane) for o in model.obstacles)
         self.step_inputs = list(step_inputs)
         self.gated = {}
         P = poses
@@ -140,10 +142,10 @@ class FeetStep:
         ``R_e``); ``rate_of(l)`` is the rate that selects the branches; ``span``: the
         dampers' rate over a touchdown's part of the step (:meth:`damper_rate`).
         Returns the step's outputs, l, n_b, the world normal and the rate."""
-        scene, mu, friction = self.scene, self.mu, self.friction
+        model, scheme, mu, friction = self.model, self.scheme, self.mu, self.friction
         fns, p_leg = leg.fns, leg.p_leg
         pad = leg.pad
-        _, normal_w, _ = closest_obstacle(scene.obstacles, r_s, pad)
+        _, normal_w, _ = closest_obstacle(model.obstacles, r_s, pad)
         l = R_e.T @ (r_s - pos_e) - rho_s                      # §3: l_j, exact kinematics
         n_b = R_e.T @ normal_w
         u0 = rho_s - leg.rest
@@ -154,23 +156,23 @@ class FeetStep:
         else:
             rate = self.damper_rate(leg, rho_s, span)
             P0, Dp = self.memory_linearisation(leg, rho_s, l, rate)
-        out = contact_step_call(scene.method, P0, Dp, n_b, l, mu, u0, friction=friction)
-        if scene.tangent_plane == "end" or leg.sets is not None:
+        out = contact_step_call(scheme.method, P0, Dp, n_b, l, mu, u0, friction=friction)
+        if scheme.tangent_plane == "end" or leg.sets is not None:
             # second pass: the tangent plane at the predicted end point, shifted along
             # its normal so that a sticking foot keeps its world point r_s; on the memory
             # law, the force law linearised there too, in the regime the foot reaches
             # (a slipping foot may leave the band where a sticking one would enter it)
-            if scene.tangent_plane == "end":
-                _, _, r_pred = closest_obstacle(scene.obstacles,
+            if scheme.tangent_plane == "end":
+                _, _, r_pred = closest_obstacle(model.obstacles,
                                                 pos_e + R_e @ (rho_s + out["delta"]), pad)
-                _, normal_w, _ = closest_obstacle(scene.obstacles, r_pred, pad)
+                _, normal_w, _ = closest_obstacle(model.obstacles, r_pred, pad)
                 n_b = R_e.T @ normal_w
                 l = l + n_b * ca.dot(n_b, R_e.T @ (r_pred - r_s))
             if leg.sets is not None:
                 P0, Dp = self.memory_linearisation(leg, rho_s, out["delta"], rate)
-            out = contact_step_call(scene.method, P0, Dp, n_b, l, mu, u0,
+            out = contact_step_call(scheme.method, P0, Dp, n_b, l, mu, u0,
                                     friction=friction)
-        if scene.slip == "midpoint" and friction:
+        if scheme.slip == "midpoint" and friction:
             # second-order slip direction (symcushion.contact.midpoint); μ = 0 has none.
             # The start force turns with the body into the frame of the end.
             turn = R_e.T @ R_s - ca.DM.eye(3)
@@ -332,7 +334,7 @@ class FeetStep:
     def on_surface(self, rho, delta, pos_e, R_e, pad=0.0):
         """The foot ρ + δ at the pose (pos_e, R_e) put on the obstacle (its offset surface
         for a footpad of radius ``pad``): world, body."""
-        _, _, w = closest_obstacle(self.scene.obstacles, pos_e + R_e @ (rho + delta), pad)
+        _, _, w = closest_obstacle(self.model.obstacles, pos_e + R_e @ (rho + delta), pad)
         return w, R_e.T @ (w - pos_e)
 
     def split_at_switch(self, leg: LegInput, rho_s, r_s, stored):
@@ -380,18 +382,18 @@ class FeetStep:
         branch) is replaced by ``rate``, and the step is not split. ``stored``: the
         stored force's curve (1 loading) where the state keeps it, else read from
         the force."""
-        scene, P = self.scene, self.poses
+        model, P = self.model, self.poses
         h, foot = P.h, leg.foot
         in_contact = foot["contact"] > 0.5
         # free foot: where does its unloaded position cross the surface?
         free0 = P.pos + P.R @ (leg.rest if leg.rest_start is None else leg.rest_start)
         free1 = P.pos1 + P.R1 @ leg.rest
-        d0, _, _ = closest_obstacle(scene.obstacles, free0, leg.pad)
-        d1, _, _ = closest_obstacle(scene.obstacles, free1, leg.pad)
+        d0, _, _ = closest_obstacle(model.obstacles, free0, leg.pad)
+        d1, _, _ = closest_obstacle(model.obstacles, free1, leg.pad)
         crossing = d0 - d1
         tau = ca.if_else(crossing > 0, d0 / ca.if_else(crossing > 0, crossing, 1.0), 0.0)
         tau = at_most(at_least(tau, 0.0), 1.0)
-        _, _, touch = closest_obstacle(scene.obstacles, free0 + tau * (free1 - free0), leg.pad)
+        _, _, touch = closest_obstacle(model.obstacles, free0 + tau * (free1 - free0), leg.pad)
         touches = d1 < 0
         active = ca.logic_or(in_contact, touches)
         span = None
@@ -413,7 +415,7 @@ class FeetStep:
         out, l, n_b, normal_w, v_rel = self.contact_from(leg, rho_s, r_s, P.pos1, P.R1,
                                                          chord_rate, P.R, span)
         rho_last, split, l_whole = rho_s, None, l
-        if scene.events in ("branch", "lock") and locates_switch(leg.strut):
+        if self.scheme.events in ("branch", "lock") and locates_switch(leg.strut):
             # the split step, in a call that runs only where the foot is in contact and
             # either the chord or the switching function at the unsplit step's middle
             # foot point (the split's own where the chord keeps the stored curve) says
@@ -445,10 +447,10 @@ class FeetStep:
         stays = ca.logic_and(active, out["contact"] > 0.5)
         rho1 = ca.if_else(stays, rho_last + out["delta"], leg.rest)
         foot_w = P.pos1 + P.R1 @ rho1
-        _, _, foot_proj = closest_obstacle(scene.obstacles, foot_w, leg.pad)
+        _, _, foot_proj = closest_obstacle(model.obstacles, foot_w, leg.pad)
         foot_w = ca.if_else(stays, foot_proj, foot_w)
         if self.curved:
-            _, normal_end, _ = closest_obstacle(scene.obstacles, foot_proj, leg.pad)
+            _, normal_end, _ = closest_obstacle(model.obstacles, foot_proj, leg.pad)
         else:                       # on planes the predicted normal is the final one
             normal_end = normal_w
         rho1 = ca.if_else(stays, P.R1.T @ (foot_w - P.pos1), rho1)

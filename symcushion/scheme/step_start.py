@@ -21,7 +21,7 @@ from symcushion.scheme.branch_switch import locates_switch
 from symcushion.layout.vectors import footpads, param_layout, state_layout
 from symcushion.legs.leg_scheme import bound_geometry
 from symcushion.scheme.quaternion import quat_to_rot
-from symcushion.model.scene import Scene
+from symcushion.model.parts import Model, Scheme
 from symcushion.scheme.stroke_lock import LOCKED
 
 __all__ = ["MEMORY_FIELDS", "StepStart", "step_start", "start_foot"]
@@ -48,7 +48,8 @@ class StepStart:
     :data:`~symcushion.scheme.stroke_lock.UNLOADING`).
     """
 
-    scene: Scene
+    model: Model
+    scheme: Scheme
     X: ca.SX
     p: ca.SX
     h: ca.SX
@@ -80,12 +81,13 @@ class StepStart:
         return self.pos, self.vel, self.quat, self.omega, self.R
 
 
-def step_start(scene: Scene, geometry: str = "input") -> StepStart:
-    """The symbols of a scene's step and the quantities read from them."""
-    legs = scene.legs
+def step_start(model: Model, scheme: Scheme, geometry: str = "input") -> StepStart:
+    """The symbols of the step of ``model`` under ``scheme`` and the quantities read
+    from them."""
+    legs = model.legs
     n_legs = len(legs)
     inputs = geometry == "input"
-    params = param_layout(scene, inputs)
+    params = param_layout(model, inputs)
     xl = state_layout(n_legs)
     X = ca.SX.sym("x", xl.size)
     p = ca.SX.sym("p", params.size)
@@ -95,14 +97,14 @@ def step_start(scene: Scene, geometry: str = "input") -> StepStart:
     inertia = params.inertia(p)
     body = BodyParams(m=params.get(p, "mass"), inertia=inertia, inertia_inv=ca.inv(inertia),
                       g=params.get(p, "gravity"))
-    friction = scene.mu > 0          # μ = 0 literally: the frictionless graph, no μ entry
+    friction = model.mu > 0          # μ = 0 literally: the frictionless graph, no μ entry
     mu = params.get(p, "mu") if friction else 0.0
 
     state = xl.unpack(X)
     feet = [{f: state[f][j] for f in FOOT_FIELDS} for j in range(n_legs)]
     # the legs on the memory law (symcushion.legs.absorber): their unloaded foot is where the
     # axial element's set leaves it
-    memory = [scene.hysteresis == "memory" and leg.axial_state for leg in legs]
+    memory = [scheme.hysteresis == "memory" and leg.axial_state for leg in legs]
     fns_of = [dict(leg.functions(geometry), **(leg.memory_functions(geometry) if mem else {}))
               for leg, mem in zip(legs, memory)]
     p_of = [params.leg_inputs(p, j) for j in range(n_legs)]
@@ -114,12 +116,12 @@ def step_start(scene: Scene, geometry: str = "input") -> StepStart:
     rest = [leg.rest_foot_expr(p_leg) if inputs else ca.DM(leg.rest_foot)
             for leg, p_leg in zip(legs, p_of)]
     lockable = [j for j, leg in enumerate(legs)
-                if scene.events == "lock" and locates_switch(leg)]
-    return StepStart(scene=scene, X=X, p=p, h=h, params=params, body=body, mu=mu,
+                if scheme.events == "lock" and locates_switch(leg)]
+    return StepStart(model=model, scheme=scheme, X=X, p=p, h=h, params=params, body=body, mu=mu,
                      pos=state["position"], vel=state["velocity"], quat=state["attitude"],
                      omega=state["angular_velocity"], R=quat_to_rot(state["attitude"]),
                      feet=feet, memory=memory, fns_of=fns_of, p_of=p_of, rest=rest,
-                     pads=footpads(scene, params, p), lockable=lockable,
+                     pads=footpads(model, params, p), lockable=lockable,
                      locked0={j: ca.fabs(feet[j]["contact"] - LOCKED) < 0.5 for j in lockable},
                      stored_loading={j: feet[j]["contact"] < 2.5 for j in lockable})
 

@@ -96,6 +96,7 @@ from symcushion.scheme.foot_step import FeetStep, LegInput, StepPoses
 from symcushion.layout.vectors import (BODY_OUT, BODY_STATE, LEG_OUT, LEG_STATE, MODES,
     ParamLayout, default_p)
 from symcushion.scheme.quaternion import quat_to_rot
+from symcushion.model.parts import Model, Scheme
 from symcushion.model.scene import Scene
 from symcushion.scheme.step_start import StepStart, start_foot, step_start
 from symcushion.legs.strut import GEOMETRY_MODES
@@ -241,7 +242,7 @@ def _leg_input(s: StepStart, j: int, rho0) -> LegInput:
     """Leg j in the feet's contact pass; a leg on the memory law with its free foot at the
     start where it relaxed to, at the end where it relaxes to over the step
     (symcushion.legs.absorber)."""
-    leg, fns, p_leg, foot, pad = s.scene.legs[j], s.fns_of[j], s.p_of[j], s.feet[j], s.pads[j]
+    leg, fns, p_leg, foot, pad = s.model.legs[j], s.fns_of[j], s.p_of[j], s.feet[j], s.pads[j]
     if not s.memory[j]:
         return LegInput(strut=leg, fns=fns, p_leg=p_leg, rest=s.rest[j], foot=foot, rho0=rho0,
                         pad=pad)
@@ -257,7 +258,7 @@ def contact_pass(s: StepStart, rho0, ax0, drift, R1):
     lockable leg with its lock and the curve it takes if released. Returns the results,
     those curves by leg, and the gated calls of the split contact steps."""
     vel_h, omega_h, pos1, _ = drift
-    feet_step = FeetStep(s.scene, StepPoses(h=s.h, pos=s.pos, quat=s.quat, R=s.R, vel=s.vel,
+    feet_step = FeetStep(s.model, s.scheme, StepPoses(h=s.h, pos=s.pos, quat=s.quat, R=s.R, vel=s.vel,
                                             omega=s.omega, vel_h=vel_h, omega_h=omega_h,
                                             pos1=pos1, R1=R1), s.mu, [s.X, s.p, s.h])
     res, release_loading = [], {}
@@ -271,8 +272,27 @@ def contact_pass(s: StepStart, rho0, ax0, drift, R1):
     return res, release_loading, feet_step.gated
 
 
-def build_model(scene: Scene, geometry: str = "input") -> StepModel:
-    """Build the ``touchdown_step`` Function of a scene.
+def _scene_of(scene, scheme) -> Scene:
+    """The scene a step is built for: ``scene`` itself, or a model and a scheme grouped."""
+    if isinstance(scene, Model):
+        scheme = Scheme() if scheme is None else scheme
+        if not isinstance(scheme, Scheme):
+            raise TypeError(f"`scheme` must be a Scheme, got {type(scheme).__name__}.")
+        return Scene.from_parts(scene, scheme)
+    if not isinstance(scene, Scene):
+        raise TypeError(f"`scene` must be a Scene or a Model, got {type(scene).__name__}; "
+                        "load a file with symcushion.load_scene(path).")
+    if scheme is not None:
+        raise ValueError("`scheme` is given with a Scene, which has its own; pass "
+                         "scene.model with the scheme, or scene.with_(...) instead.")
+    return scene
+
+
+def build_model(scene: Scene | Model, geometry: str = "input", *,
+                scheme: Scheme | None = None) -> StepModel:
+    """Build the ``touchdown_step`` Function of a scene: of its model under its scheme
+    (:mod:`symcushion.model.parts`), or of a :class:`Model` under ``scheme`` (default
+    :class:`Scheme`'s choices). The step has Δt as an input: no time grid enters it.
 
     Only what the scene needs is built: a leg's absent elements add nothing,
     μ = 0 builds the frictionless contact step, and only the scene's
@@ -287,7 +307,8 @@ def build_model(scene: Scene, geometry: str = "input") -> StepModel:
     """
     if geometry not in GEOMETRY_MODES:
         raise ValueError(f"`geometry` must be one of {GEOMETRY_MODES}, got {geometry!r}.")
-    s = step_start(scene, geometry)
+    scene = _scene_of(scene, scheme)
+    s = step_start(scene.model, scene.scheme, geometry)
     legs = range(s.n_legs)
     # 1. half kick with the stored forces (+ Λ e_S on locked legs, SHAKE), 2. drift
     rho0 = [start_foot(s, j, s.R, s.pos) for j in legs]

@@ -315,13 +315,13 @@ def switch_kick(s: StepStart, res, ends, R1):
     (``FeetStep.event_kick``). ``ends[j]``: leg j's end pose ``rho1``, force ``P1`` and
     whether (B1) applies (``b1_active``)."""
     switch_force, switch_torque = ca.DM.zeros(3), ca.DM.zeros(3)   # (B1)
-    for j, leg in enumerate(s.scene.legs):
+    for j, leg in enumerate(s.model.legs):
         r = res[j]
         if r.get("events") is not None:
             # a touchdown or lift-off located inside the step (memory law, FeetStep.event_kick)
             switch_force, switch_torque = switch_force + r["events"][0], \
                 switch_torque + r["events"][1]
-        if s.scene.events in ("branch", "lock") and locates_switch(leg):
+        if s.scheme.events in ("branch", "lock") and locates_switch(leg):
             # the kick at the located loading/unloading switch (symcushion.scheme.branch_switch)
             dF, dT, _ = branch_switch_kick(
                 s.fns_of[j], s.p_of[j],

@@ -84,7 +84,7 @@ def leg_outputs(s: StepStart, j: int, r: dict, end: dict, rho0, R1) -> dict:
     geo = fns["strut_geometry"].call(dict(r=end["rho1"]))
     return dict(in_contact=ca.if_else(stays, 1.0, 0.0), mode=mode, force=R1 @ end["P1"],
                 normal=ca.if_else(stays, r["normal_w"], ca.DM.zeros(3)),
-                axis=R1 @ geo["e_S"], **s.scene.legs[j].deflection_outputs(geo),
+                axis=R1 @ geo["e_S"], **s.model.legs[j].deflection_outputs(geo),
                 **leg_work(fns, dict(rho=rho0, P=foot["force_body"], R=s.R,
                                      foot=ca.if_else(r["in_contact"], foot["foot"], r["r_s"])),
                            dict(rho=end["rho1"], P=end["P1"], R=R1, foot=end["foot_w"]),
