@@ -12,6 +12,7 @@ limits and that no import circle or private cross-module import comes back.
 from __future__ import annotations
 
 import ast
+import re
 import sys
 from collections import defaultdict
 from pathlib import Path
@@ -102,7 +103,8 @@ def folder_table() -> str:
         path = PACKAGE / part
         init = path / "__init__.py" if path.is_dir() else path.with_suffix(".py")
         doc = ast.get_docstring(ast.parse(init.read_text())).split("\n\n")[0]
-        doc = " ".join(doc.split()).replace("|", "\\|")
+        doc = re.sub(r":\w+:`~?\.?([^`]+)`", r"`\1`", " ".join(doc.split()))
+        doc = doc.replace("``", "`").replace("|", "\\|")
         if path.is_dir():
             names = sorted(p.relative_to(path).with_suffix("").as_posix()
                            for p in path.rglob("*.py") if p.name != "__init__.py"
