@@ -287,3 +287,44 @@ def test_a_trajectory_gives_back_the_states_of_its_run():
     X, _ = model.rollout(scene.steps)(initial_state(scene), model.default_p, scene.dt)
     np.testing.assert_array_equal(traj.states()[:, 1:], np.asarray(X))
     np.testing.assert_array_equal(traj.states()[:, 0], initial_state(scene))
+
+
+def _level_lander(mu, bending=Linear(3e3)):
+    """Four splayed struts on level ground, |P_τ|/N = 0.54 at their feet when held;
+    ``bending``: both hinge springs (None: a leg that only pushes along itself)."""
+    from symcushion.model.scene import symmetric_legs
+    legs = symmetric_legs(4, 0.5, 0.0, 1.0, (0.5, 0, -0.866), (0, 0, 1), S=Linear(5e4),
+                          M_beta=bending, M_gamma=bending)
+    return Scene(Body(200.0, [40.0, 40.0, 60.0], position=(0, 0, 0.9)), legs, [Plane()],
+                 mu=mu, dt=1e-3, duration=0.01)
+
+
+def _cone_ratios(scene, x0):
+    from symcushion.layout.vectors import state_layout
+    from symcushion.scheme.quaternion import quat_to_rot_np
+    xl = state_layout(len(scene.legs))
+    F = xl.legs(x0, "force_body") @ quat_to_rot_np(xl.get(x0, "attitude")).T
+    return np.hypot(F[:, 0], F[:, 1]) / F[:, 2]          # level ground: n = z
+
+
+def test_at_rest_every_foot_force_is_inside_the_friction_cone():
+    """Held where they land, the splayed feet carry |P_τ|/N above μ = 0.1; the
+    equilibrium slides them out to their cones (1.4), and the first step from it
+    moves no foot (no slip at t = 0⁺) while from the held start they slip."""
+    scene = _level_lander(0.1)
+    held, rest = equilibrium_state(scene, cone=False), equilibrium_state(scene)
+    assert np.all(_cone_ratios(scene, held) > 0.1 * 1.5)
+    ratios = _cone_ratios(scene, rest)
+    assert np.all(ratios <= 0.1 * (1 + 1e-9)) and np.allclose(ratios, 0.1, rtol=1e-8)
+    from symcushion.layout.vectors import state_layout
+    xl = state_layout(4)
+    model = build_model(scene)
+    for x0, moves in ((rest, False), (held, True)):
+        x1 = np.asarray(model.step(x0, model.default_p, 1e-4)[0]).ravel()
+        slip = np.max(np.abs(xl.legs(x1, "foot") - xl.legs(x0, "foot")))
+        assert (slip > 1e-6) == moves, slip
+
+
+def test_no_rest_inside_the_cone_is_refused_with_the_way_out():
+    with pytest.raises(ValueError, match="cone=False"):
+        equilibrium_state(_level_lander(0.05, bending=None))

@@ -33,15 +33,16 @@ CONTROL_DTS = (2e-3, 1e-3, 5e-4, 2.5e-4, 1e-4)
 #: ~1e-8 m/s, below every error measured, while each foot makes the
 #: instantaneous slip that brings a force outside the friction cone onto it.
 SETTLE_DT = 1e-9
-#: Starts of the controls: ``equilibrium_state`` as built, and settled.
+#: Starts of the controls: ``equilibrium_state(cone=False)`` as built (feet held), and settled.
 STARTS = ("as built", "settled")
 
 
 def settled(model, x0, p=None):
     """The state after one step of :data:`SETTLE_DT` from ``x0``: the feet on the cone.
 
-    ``equilibrium_state`` holds every foot where it lands with the force of a
-    foot that sticks; below the legs' |P_τ|/N (0.24 at rest on level ground)
+    ``equilibrium_state(cone=False)`` holds every foot where it lands with the
+    force of a foot that sticks (by default it solves for the feet on their cones
+    instead); below the legs' |P_τ|/N (0.24 at rest on level ground)
     those forces lie outside the friction cone (1.4), and the massless feet
     slip at t = 0⁺ by a finite amount. From such a start the first half kick
     of every run uses forces that its contact step then discards: an error
@@ -82,7 +83,7 @@ def control_scene(mu, kick_v, kick_w, duration=CONTROL_DURATION, name="control")
 def _kicked(scene, kick_v, kick_w):
     """The scene's state at rest on its feet with the velocity kick_v (m/s, world) and
     angular velocity kick_w (rad/s, body axes) added."""
-    x0 = equilibrium_state(scene)
+    x0 = equilibrium_state(scene, cone=False)   # held where they land: the start "as built"
     xl = state_layout(len(scene.legs))
     x0[xl.slice("velocity")] += np.asarray(kick_v, dtype=float)
     x0[xl.slice("angular_velocity")] += np.asarray(kick_w, dtype=float)

@@ -170,7 +170,8 @@ def case_slope_stick(method, full=True):
     body = Body(40.0, [2.0, 2.0, 2.0], position=[0, 0, 0.01], attitude=attitude)
     scene = Scene(body, legs, [Plane.inclined(SLOPE)], mu=float(np.tan(SLOPE)),
                   method=method, dt=1e-2, duration=100.0, name="slope_stick")
-    x0 = equilibrium_state(scene, placement="nearest")
+    # held where they land (cone=False): μ is set from their forces below
+    x0 = equilibrium_state(scene, placement="nearest", cone=False)
     # the legs' 5 mm compression lowers the feet below the centre of mass, so the
     # friction forces tilt the load and the feet's T/N differ from tan θ by ~0.5 %:
     # μ is set just above the largest one at the equilibrium
