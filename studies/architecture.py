@@ -117,6 +117,15 @@ def folder_table() -> str:
     return "\n".join(rows) + "\n"
 
 
+def api_list() -> str:
+    """The public API: the names ``symcushion/__init__.py`` exports."""
+    import symcushion
+
+    names = ", ".join(f"`{n}`" for n in symcushion.__all__)
+    return ("What `import symcushion` gives (its `__all__`; everything else is imported "
+            f"from its module):\n\n{names}.\n")
+
+
 def function_lengths() -> list:
     """(lines, module, function) of every function of the package."""
     out = []
@@ -192,6 +201,7 @@ def main() -> int:
         return 1
     draw(FIGURE)
     write_section(DOC, "Folders", folder_table(), title="# Architecture")
+    write_section(DOC, "Public API", api_list(), title="# Architecture")
     write_section(DOC, "Module sizes", size_table(), title="# Architecture")
     print(f"wrote {FIGURE} and the folder and size tables of {DOC}")
     return 0

@@ -18,6 +18,7 @@ from symcushion.layout.vectors import MODES, output_columns, state_columns
 from symcushion.scheme.measures import measures_function
 from symcushion.model.obstacles import ImplicitSurface, Plane, Sphere, Terrain
 from symcushion.model.scene import load_scene, scene_from_dict
+from symcushion.model.parts import Model, Scheme, TimeGrid
 from symcushion.model.scene_data import Body, Scene, symmetric_legs
 from symcushion.legs.strut import HingedStrut
 from symcushion.legs.tripod import InvertedTripod
@@ -28,7 +29,7 @@ __all__ = ["Crushable", "Curve", "Linear", "PiecewiseLinear", "TwoSided", "Hinge
            "InvertedTripod",
            "METHODS", "contact_step", "solve_contact",
            "Plane", "Sphere", "ImplicitSurface", "Terrain",
-           "Body", "Scene", "load_scene", "scene_from_dict", "symmetric_legs",
+           "Body", "Scene", "Model", "Scheme", "TimeGrid", "load_scene", "scene_from_dict", "symmetric_legs",
            "StepModel", "build_model", "initial_state", "equilibrium_state", "stable_dt",
            "Trajectory", "simulate", "save", "MODES", "state_columns", "output_columns",
            "measures_function", "envelope", "optimise"]

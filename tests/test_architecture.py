@@ -79,3 +79,11 @@ def test_modules_and_functions_are_short_enough_to_read_at_once():
     assert long_modules == []
     lines, module, name = architecture.function_lengths()[0]
     assert lines <= MAX_FUNCTION_LINES, (module, name)
+
+
+def test_the_map_in_the_docs_is_the_code_s():
+    """docs/architecture.md's folder table and public API are those the code gives
+    (``python studies/architecture.py`` writes them)."""
+    doc = architecture.DOC.read_text()
+    assert architecture.folder_table() in doc
+    assert architecture.api_list() in doc
