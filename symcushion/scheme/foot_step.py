@@ -27,14 +27,12 @@ from dataclasses import dataclass
 
 import casadi as ca
 
-from symcushion.scheme.branch_switch import (branch_flip, locates_switch, stored_branch,
-    switch_in_step)
 from symcushion.contact.dispatch import contact_step_call
 from symcushion.contact.guards import at_least, at_most
 from symcushion.contact.midpoint import midpoint_slip_call
 from symcushion.scheme.quaternion import quat_exp, quat_mul, quat_to_rot
 from symcushion.model.obstacles import Plane, closest_obstacle
-from symcushion.scheme.stroke_lock import axial_branches, skip_unless
+from symcushion.scheme.foot_split import SplitAtSwitch
 
 __all__ = ["StepPoses", "LegInput", "FeetStep", "MIN_CONTACT_FRACTION"]
 
@@ -98,7 +96,7 @@ class LegInput:
     pad: ca.SX | float = 0.0
 
 
-class FeetStep:
+class FeetStep(SplitAtSwitch):
     """The contact steps of the feet of one body step.
 
     Parameters
@@ -331,61 +329,12 @@ class FeetStep:
         e_S = fns["strut_geometry"].call(dict(r=at["rho1"]))["e_S"]
         return ca.if_else(kink, share * theta * (1 - theta) * dk * dx / 2, 0.0) * e_S
 
-    def on_surface(self, rho, delta, pos_e, R_e, pad=0.0):
-        """The foot ρ + δ at the pose (pos_e, R_e) put on the obstacle (its offset surface
-        for a footpad of radius ``pad``): world, body."""
-        _, _, w = closest_obstacle(self.model.obstacles, pos_e + R_e @ (rho + delta), pad)
-        return w, R_e.T @ (w - pos_e)
-
-    def split_at_switch(self, leg: LegInput, rho_s, r_s, stored):
-        """The contact step of ``leg``'s foot split at its axial branch switch: on the
-        stored curve up to the switch, the foot's jump onto the other curve there,
-        then on to the end. Returns the split step's (out, l, n_b, world normal,
-        rate, start foot ρ of its last part) and the switch's ``use`` and θ."""
-        P = self.poses
-        h, fns, p_leg = P.h, leg.fns, leg.p_leg
-
-        def on_branch(loading, rho):
-            a = axial_branches(fns, p_leg, rho)
-            rate = ca.if_else(loading, 1.0, -1.0) * ca.dot(a["loading"], a["e_S"])
-            return lambda l_: l_ / h + (rate - ca.dot(a["e_S"], l_ / h)) * a["e_S"]
-
-        # where the switching function crosses zero, following the sliding foot: its
-        # middle position on the stored curve over the whole step
-        whole, _, _, _, _ = self.contact_from(leg, rho_s, r_s, P.pos1, P.R1,
-                                              on_branch(stored, rho_s), P.R)
-        sw = switch_in_step(fns, rho_s, rho_s + whole["delta"] / 2, stored, self.kin_start,
-                            self.kin_mid)
-        theta = sw["theta"]
-        pos_t = P.pos + theta * h * P.vel_h
-        quat_t = quat_mul(P.quat, quat_exp(theta * h * P.omega_h))
-        R_t = quat_to_rot(quat_t / ca.norm_2(quat_t))
-        new = ca.logic_not(stored)
-        # up to the switch on the stored curve
-        before, _, _, _, _ = self.contact_from(leg, rho_s, r_s, pos_t, R_t,
-                                               on_branch(stored, rho_s), P.R)
-        foot_t, rho_t = self.on_surface(rho_s, before["delta"], pos_t, R_t, leg.pad)
-        # at the switch the massless foot finds its equilibrium on the new curve at
-        # once (l = 0: the body does not move during the jump)
-        jump, _, _, _, _ = self.contact_from(leg, rho_t, foot_t, pos_t, R_t,
-                                             on_branch(new, rho_t), R_t)
-        foot_t, rho_t = self.on_surface(rho_t, jump["delta"], pos_t, R_t, leg.pad)
-        after, l, n_b, normal_w, v_rel = self.contact_from(leg, rho_t, foot_t, P.pos1, P.R1,
-                                                           on_branch(new, rho_t), R_t)
-        use = ca.logic_and(ca.logic_and(sw["switches"], leg.foot["contact"] > 0.5),
-                           ca.logic_and(before["contact"] > 0.5, jump["contact"] > 0.5))
-        return (after, l, n_b, normal_w, v_rel, rho_t), dict(use=use, theta=theta)
-
-    def foot(self, j, leg: LegInput, release=None, stored=None) -> dict:
-        """The contact step of foot ``j``. ``release`` = (flag, e_S, rate): where the
-        flag is set, the axial component of the chord's rate l/h (which picks the
-        branch) is replaced by ``rate``, and the step is not split. ``stored``: the
-        stored force's curve (1 loading) where the state keeps it, else read from
-        the force."""
-        model, P = self.model, self.poses
-        h, foot = P.h, leg.foot
-        in_contact = foot["contact"] > 0.5
-        # free foot: where does its unloaded position cross the surface?
+    def crossing(self, leg: LegInput, in_contact):
+        """Where the free foot's unloaded position crosses the obstacle over the step:
+        (θ of the crossing, the world point there, whether the foot is in contact at
+        some time of the step, and on the memory law the part of the step in contact,
+        ``(touching, h_c)``, else None)."""
+        model, P, h = self.model, self.poses, self.poses.h
         free0 = P.pos + P.R @ (leg.rest if leg.rest_start is None else leg.rest_start)
         free1 = P.pos1 + P.R1 @ leg.rest
         d0, _, _ = closest_obstacle(model.obstacles, free0, leg.pad)
@@ -401,50 +350,13 @@ class FeetStep:
             # a touchdown at θ = tau: in contact over the step's last (1 − θ)h only
             touching = ca.logic_and(ca.logic_not(in_contact), touches)
             span = (touching, h * ca.fmax(1 - tau, MIN_CONTACT_FRACTION))
+        return tau, touch, active, span
 
-        r_s = ca.if_else(in_contact, foot["foot"], touch)        # world point of the plane
-        rho_s = leg.rho0                                         # foot, body frame
-
-        def chord_rate(l):
-            v_rel = l / h                                      # selects loading branches
-            if release is not None:
-                flag, e_S, rate = release
-                v_rel = ca.if_else(flag, v_rel + (rate - ca.dot(e_S, v_rel)) * e_S, v_rel)
-            return v_rel
-
-        out, l, n_b, normal_w, v_rel = self.contact_from(leg, rho_s, r_s, P.pos1, P.R1,
-                                                         chord_rate, P.R, span)
-        rho_last, split, l_whole = rho_s, None, l
-        if self.scheme.events in ("branch", "lock") and locates_switch(leg.strut):
-            # the split step, in a call that runs only where the foot is in contact and
-            # either the chord or the switching function at the unsplit step's middle
-            # foot point (the split's own where the chord keeps the stored curve) says
-            # the curve changes: elsewhere (B2) finds no switch and the call's value is
-            # the unsplit step's
-            fns, p_leg = leg.fns, leg.p_leg
-            if stored is None:
-                stored = stored_branch(fns, p_leg, rho_s, foot["force_body"])
-            flip, _ = branch_flip(fns, p_leg, rho_s, foot["force_body"], l, h, stored)
-            near = switch_in_step(fns, rho_s, rho_s + out["delta"] / 2, stored, self.kin_start,
-                                  self.kin_mid)["switches"]
-            candidate = ca.logic_and(in_contact, ca.logic_or(flip, near))
-            if release is not None:
-                candidate = ca.logic_and(candidate, ca.logic_not(release[0]))
-            keys = sorted(out)
-            plain = [out[k] for k in keys] + [l, n_b, normal_w, v_rel, rho_s]
-            plain_in = [ca.SX.sym(f"plain{k}", x.sparsity()) for k, x in enumerate(plain)]
-            parts, sw = self.split_at_switch(leg, rho_s, r_s, stored)
-            parts = [parts[0][k] for k in keys] + list(parts[1:])
-            on = [ca.if_else(sw["use"], a, b) for a, b in zip(parts, plain_in)]
-            got, self.gated[f"touchdown_split_{j}"] = skip_unless(
-                f"touchdown_split_{j}", candidate, self.step_inputs + plain_in,
-                self.step_inputs + plain,
-                on + [sw["use"], ca.if_else(sw["use"], sw["theta"], 0.5)],
-                plain_in + [ca.SX(0), ca.SX(0.5)])
-            out = dict(zip(keys, got[:len(keys)]))
-            l, n_b, normal_w, v_rel, rho_last = got[len(keys):len(keys) + 5]
-            split = dict(use=got[-2], theta=got[-1])
-        stays = ca.logic_and(active, out["contact"] > 0.5)
+    def end_pose(self, leg: LegInput, out, n_b, normal_w, rho_last, stays):
+        """Where foot and force end the step: the foot (body frame and world) put on the
+        obstacle where it stays in contact, else at rest; the normal there; the end
+        force, turned onto that normal on a curved obstacle."""
+        model, P = self.model, self.poses
         rho1 = ca.if_else(stays, rho_last + out["delta"], leg.rest)
         foot_w = P.pos1 + P.R1 @ rho1
         _, _, foot_proj = closest_obstacle(model.obstacles, foot_w, leg.pad)
@@ -458,7 +370,35 @@ class FeetStep:
         # that plane onto the plane at the foot's final point: a frictionless force is then
         # normal where the foot is, and on a curved obstacle does no work on its slide
         P_end = turned(out["P"], n_b, P.R1.T @ normal_end) if self.curved else out["P"]
-        P1 = ca.if_else(stays, P_end, ca.DM.zeros(3))
+        return rho1, foot_w, normal_end, ca.if_else(stays, P_end, ca.DM.zeros(3))
+
+    def foot(self, j, leg: LegInput, release=None, stored=None) -> dict:
+        """The contact step of foot ``j``. ``release`` = (flag, e_S, rate): where the
+        flag is set, the axial component of the chord's rate l/h (which picks the
+        branch) is replaced by ``rate``, and the step is not split. ``stored``: the
+        stored force's curve (1 loading) where the state keeps it, else read from
+        the force."""
+        P = self.poses
+        h, foot = P.h, leg.foot
+        in_contact = foot["contact"] > 0.5
+        tau, touch, active, span = self.crossing(leg, in_contact)
+        r_s = ca.if_else(in_contact, foot["foot"], touch)        # world point of the plane
+        rho_s = leg.rho0                                         # foot, body frame
+
+        def chord_rate(l):
+            v_rel = l / h                                      # selects loading branches
+            if release is not None:
+                flag, e_S, rate = release
+                v_rel = ca.if_else(flag, v_rel + (rate - ca.dot(e_S, v_rel)) * e_S, v_rel)
+            return v_rel
+
+        out, l, n_b, normal_w, v_rel = self.contact_from(leg, rho_s, r_s, P.pos1, P.R1,
+                                                         chord_rate, P.R, span)
+        l_whole = l
+        out, (l, n_b, normal_w, v_rel, rho_last), split = self.located_split(
+            j, leg, (out, l, n_b, normal_w, v_rel), rho_s, r_s, in_contact, release, stored)
+        stays = ca.logic_and(active, out["contact"] > 0.5)
+        rho1, foot_w, normal_end, P1 = self.end_pose(leg, out, n_b, normal_w, rho_last, stays)
         sets, chords = leg.sets, leg.chords
         if sets is not None:
             # the end force and sets of the memory law at the end foot (A1)-(A3): a stroke
