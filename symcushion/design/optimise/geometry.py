@@ -245,7 +245,7 @@ class GeometryDesign:
     @property
     def designs_geometry(self) -> bool:
         """True when some design variable is a geometry quantity."""
-        return bool(getattr(self, "geometry_vars", None))
+        return bool(self.geometry_vars)
 
     def _check_geometry_box(self):
         """The legs' own checks at the start and at every geometry bound (one at a time)."""

@@ -42,6 +42,9 @@ NOISE_FACTOR = 10.0
 class GradientCheck:
     """AD gradients of a :class:`DesignProblem` against central differences (a mixin)."""
 
+    #: The NLP compiled to C once ``use_compiled`` has built it (else the MX one).
+    _compiled_nlp = None
+
     # -- derivatives --------------------------------------------------------------
     def _row_noise(self, x) -> np.ndarray:
         """Round-off of each row of (f, g) at scaled x, from evaluations only (no AD).
@@ -91,7 +94,7 @@ class GradientCheck:
         """
         theta = self.initial if theta is None else np.asarray(theta, dtype=float)
         x = self.scaled(theta)
-        nlp = getattr(self, "_compiled_nlp", self.nlp)   # the compiled NLP once in use
+        nlp = self.nlp if self._compiled_nlp is None else self._compiled_nlp  # compiled once in use
         jac = ca.Function("design_jac", [nlp["x"]],
                           [ca.jacobian(ca.vertcat(nlp["f"], nlp["g"]), nlp["x"])])
         J = np.asarray(jac(x), dtype=float)

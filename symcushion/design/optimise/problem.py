@@ -296,7 +296,7 @@ class DesignProblem(DesignSpace, Constraints, GradientCheck):
             characteristic=self.characteristics(theta),
             initial_characteristic=self.characteristics(theta0),
             limits=dict(self.limits.__dict__))
-        if getattr(self, "_frames", None) is not None:
+        if self._frames is not None:
             _, g = self.fg(self.scaled(theta, t=objective))
             record["geometry"] = dict(start=self.geometry_report(theta0),
                                       end=self.geometry_report(theta))
@@ -321,7 +321,7 @@ class DesignProblem(DesignSpace, Constraints, GradientCheck):
         theta = self.initial if theta is None else np.asarray(theta, dtype=float)
 
         # only the curves are scaled: the geometry (hinges, lengths) stays where it starts
-        curve = getattr(self, "_is_curve", np.ones(theta.size, dtype=bool))
+        curve = self._is_curve
 
         def scaled(c):
             return np.where(curve, c * theta, theta)
@@ -412,7 +412,8 @@ class DesignProblem(DesignSpace, Constraints, GradientCheck):
                 progress(entry)
 
         callback = IterationCallback(x0.size, self.lbg.size, on_iteration)
-        solver = ca.nlpsol("design", "ipopt", getattr(self, "_compiled_nlp", self.nlp),
+        nlp = self.nlp if self._compiled_nlp is None else self._compiled_nlp
+        solver = ca.nlpsol("design", "ipopt", nlp,
                            {"ipopt": options, "print_time": False,
                             "iteration_callback": callback})
         lbx = np.concatenate([self.lower / self.scale, [0.0]])   # peaks are ≥ 0
