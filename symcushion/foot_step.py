@@ -304,8 +304,9 @@ class FeetStep:
         Along a step the stroke x runs from x₀ to x₁ (x = x₀ + τ(x₁ − x₀), τ ∈ [0, 1])
         with the set s₀ of the start held until the force reaches a bound, so the force
         follows (A1) at s₀: g(τ) = max(E(τ), ℓ(τ)). E is the element's elastic line
-        through s₀ (A1), (A5), from its force at the start to its trial force at the
-        end; ℓ the loading curve, its tangents at x₀ and x₁ meeting at θ_K (the chord
+        through s₀ (A1), (A5): slope k_e from the element's force at the start (its
+        own slope, so that a bend moving from one step into the next is seen alike
+        from both sides); ℓ the loading curve, its tangents at x₀ and x₁ meeting at θ_K (the chord
         where they do not meet inside the step). A step that starts on the loading
         curve follows ℓ (E leaves it inwards), one that reloads elastically from a kept
         set follows E to where it meets ℓ. The trapezoid rule's impulse h(g(0) +
@@ -344,19 +345,22 @@ class FeetStep:
             bent = ca.if_else(tau < theta_k, f0 + k0 * dx * tau, f1 + k1 * dx * (tau - 1))
             return ca.if_else(inside, bent, f0 + (f1 - f0) * tau)
 
-        # the elastic line through the start set (A1), (A5), to the trial force at the
-        # end with the step's own rate (A3); the orifice's rate at the start (it acts in
-        # parallel and is taken out of the start force) from the mean rates
+        # the elastic line through the start set (A1), (A5); a touching foot's starts with
+        # the step's own end rate (A3), as F* does; the orifice's rate at the start (it
+        # acts in parallel and is taken out of the start force) from the mean rates
         a, b = self.damper_rate(leg, at["rho_s"], at["span"])
         rate1 = a * x1 + b[0]
         h_part = ca.if_else(touching, h_c, h)
         rate0 = (leg.chords[0] + ((x1 - s1) - (x0 - s0)) / h_part) / 2
         # at the start the force the foot carried (on the loading curve where the crush
         # goes on, exactly: E leaves it inwards); a foot that touches down, F*'s
-        e0 = ca.if_else(touching, fns["strut_elastic_line"](x0, s0, rate1, p_leg)[0],
+        line0, k_e = fns["strut_elastic_line"](x0, s0, rate1, p_leg)
+        e0 = ca.if_else(touching, line0,
                         fns["strut_band_force"](at["rho_s"], leg.foot["force_body"], rate0,
                                                 p_leg))
-        e1 = fns["strut_elastic_line"](x1, s0, rate1, p_leg)[0]
+        # E: slope k_e (A1), the element's own, so that a bend that moves from one step
+        # into the next is seen alike from both sides
+        e1 = e0 + k_e * dx
 
         def force(tau):
             return ca.fmax(e0 + (e1 - e0) * tau, loading(tau))        # (A1) at s₀
