@@ -306,8 +306,8 @@ class FeetStep:
         follows (A1) at s₀: g(τ) = max(E(τ), ℓ(τ)). E is the element's elastic line
         through s₀ (A1), (A5): slope k_e from the element's force at the start (its
         own slope, so that a bend moving from one step into the next is seen alike
-        from both sides); ℓ the loading curve, its tangents at x₀ and x₁ meeting at θ_K (the chord
-        where they do not meet inside the step). A step that starts on the loading
+        from both sides); ℓ the loading curve, its tangents at x₀ and x₁ meeting at
+        θ_K (the chord where they do not meet inside the step). A step that starts on the loading
         curve follows ℓ (E leaves it inwards), one that reloads elastically from a kept
         set follows E to where it meets ℓ. The trapezoid rule's impulse h(g(0) +
         g(1))/2 misses ∫g − (g(0) + g(1))/2 (per unit h): θ(1 − θ)(k₀ − k₁)(x₁ − x₀)/2
