@@ -297,6 +297,65 @@ def test_the_kick_carries_the_crush_onset_inside_a_step():
         assert abs(state_layout(1).get(X, "velocity")[2, -1] - exact) < 1e-4, dt
 
 
+def test_the_kick_carries_the_crush_onset_of_a_reload_from_a_kept_set():
+    """A honeycomb crushed 30 mm before (its set s₀ = −0.03 m, the foot retracted to it)
+    lands again at 2 m/s: it reloads along its elastic line k(x − s₀) from the set and
+    crushes further where that line reaches the crush force, on the flat plateau. The
+    velocity is then what a fresh honeycomb's is, the onset F_c/k past the set. Inside
+    the step the force follows the elastic line, not the loading curve at the start
+    stroke (flat there, so the kick saw no bend): 7.0e-3 m/s off at 1 ms and 1.1e-2 at
+    2 ms before the kick took the elastic line; within 1e-4 m/s at Δt = 2 … 0.25 ms."""
+    k, F_c, gap, s0 = 1e6, 2000.0, 1.23e-3, -0.03
+    S = {"type": "crushable", "stiffness": k, "crush_force": F_c, "plateau_slope": 0.0}
+    omega = np.sqrt(k / MASS)
+    t_c = gap / SPEED + np.arcsin(F_c / k * omega / SPEED) / omega
+    v_c = SPEED * np.cos(omega * (t_c - gap / SPEED))
+    T = 0.02
+    exact = -(v_c - F_c / MASS * (T - t_c))
+    xl = state_layout(1)
+    for dt in (2e-3, 1e-3, 5e-4, 2.5e-4):
+        _, scene = _drop(S, T, dt, gap=gap)
+        x0 = initial_state(scene)
+        # the body lower by the kept set, its free foot (stored, world) where it was
+        x0[xl.slice("position")] += [0.0, 0.0, s0]
+        x0[xl.slice("stroke_set", 0)] = s0
+        X, _ = _drop(S, T, dt, gap=gap, x0=x0)
+        assert xl.get(X, "stroke_set", 0)[-1] < s0 - 0.02            # it crushed further
+        assert abs(xl.get(X, "velocity")[2, -1] - exact) < 1e-4, dt
+
+
+def test_both_leg_schemes_give_the_axial_elements_force_law_along_a_step():
+    """The hinged strut and the inverted tripod give the step the loading curve their
+    axial element crushes along and its elastic line through a set (A1), (A5), for
+    the crush-onset kick: k_e (x − s) + c·ė, slope k_e; and the element's force in a
+    foot force."""
+    from symcushion.legs.strut import HingedStrut
+    from symcushion.legs.tripod import InvertedTripod
+    curve = Crushable(**HONEYCOMB, damping=350.0)
+    strut = HingedStrut(hinge=(0, 0, 0), e0=(0.3, 0, -1), en=(-0.4, 0.1, -1), length=0.8,
+                        S=curve, M_beta=Linear(2e4), M_gamma=Linear(3e4))
+    tripod = InvertedTripod(h1=(2.0, 0, 1.0), h2=(1.9, 1.0, -0.6), h3=(1.9, -1.0, -0.6),
+                            foot=(3.6, 0, -1.4), outer_length=1.9, primary=curve,
+                            secondary2=Linear(1e6), secondary3=Linear(1e6))
+    x, s, rate = -0.05, -0.02, -0.3
+    for leg in (strut, tripod):
+        fns = leg.memory_functions()
+        f, slope = (float(v) for v in fns["strut_elastic_line"](x, s, rate, []))
+        assert f == pytest.approx(1e5 * (x - s) + 350.0 * rate, rel=1e-14)
+        assert slope == pytest.approx(1e5, rel=1e-14)
+        lo, k_lo = (float(v) for v in fns["strut_crush_curve"](x, []))
+        onset = -HONEYCOMB["crush_force"] / HONEYCOMB["stiffness"]
+        assert lo == pytest.approx(-2000.0 + 5e3 * (x - onset), rel=1e-14)
+        assert k_lo == pytest.approx(5e3, rel=1e-14)
+        # the element's force back from the foot force it makes, on its band and off it
+        r = leg.rest_foot + 0.04 * np.array([-0.3, 0.2, 1.0])
+        for sets in ([0.0, 0.0, 0.0], [-0.07, 0.0, 0.0]):
+            P = fns["strut_force_memory"](r, sets, [], 0.0, [0.0, 0.0, 0.0])
+            q = float(fns["strut_deflections"](r, [])[0])
+            own = float(absorber.memory_force(curve, q, sets[0]))
+            assert float(fns["strut_band_force"](r, P, 0.0, [])) == pytest.approx(own, rel=1e-12)
+
+
 def test_a_free_foots_damped_hinges_relax_instead_of_snapping_back():
     """A free foot's damped hinge angle relaxes by (A4) like its axial element, and an
     undamped one is at rest at once: at lift-off the foot does not jump by the bending

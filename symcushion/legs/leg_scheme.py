@@ -5,7 +5,10 @@ tripod, ``symcushion.legs.tripod``) is a massless compliant mechanism with a foo
 step calls it only through ``functions()`` (``strut_force``, ``strut_stiffness``,
 ``strut_geometry``), the memory law's Functions built here from the scheme's
 ``memory_force_expr``, ``next_sets_expr``, ``free_foot_expr`` and
-``deflections_expr`` (docs/tripod.md, "Interface"; docs/absorbers.md), its
+``deflections_expr`` and, for an axial element that keeps a set,
+``axial_lower_bound_expr``, ``axial_elastic_line_expr`` and
+``axial_band_force_expr`` (docs/tripod.md,
+"Interface"; docs/absorbers.md), its
 deflection outputs and its geometry block in ``p``.
 
 This module owns the pieces both schemes build the same way: the names and
@@ -18,8 +21,10 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+from symcushion.legs import absorber
+
 __all__ = ["curve_param_names", "curve_param_values", "checked_params", "cached_memory_functions",
-           "memory_functions_of", "bound_geometry"]
+           "memory_functions_of", "elastic_line", "band_part", "bound_geometry"]
 
 
 def curve_param_names(elements) -> tuple[str, ...]:
@@ -61,7 +66,19 @@ def cached_memory_functions(leg, geometry: str) -> dict[str, ca.Function]:
 def memory_functions_of(leg, geometry: str = "constant") -> dict[str, ca.Function]:
     """The memory law's named Functions of any leg scheme with ``memory_force_expr``,
     ``next_sets_expr``, ``free_foot_expr``, ``deflections_expr`` and ``_p_size``;
-    ``geometry="input"``: ``p`` ends with the leg's geometry block."""
+    ``geometry="input"``: ``p`` ends with the leg's geometry block.
+
+    A scheme whose axial element keeps a set (``axial_memory``) and that has
+    ``axial_lower_bound_expr``, ``axial_elastic_line_expr`` and
+    ``axial_band_force_expr`` also gets
+    ``strut_crush_curve(x, p) -> (f, slope)``, the lower bound lo(x) of (A1) that
+    the element crushes along, and ``strut_elastic_line(x, set, rate, p) -> (f,
+    slope)``, its elastic line k_e(x − s) + c·ė through the set s (A1), (A5), with
+    ė the elastic deflection's rate and slope k_e, and (from
+    ``axial_band_force_expr``) ``strut_band_force(r, P, rate, p) -> f``, the
+    element's force (A1), (A5) that the foot force P at foot r carries, less its end
+    stop and its orifice at ``rate`` (:func:`band_part`).
+    """
     r, r_regime = ca.SX.sym("r", 3), ca.SX.sym("r_regime", 3)
     sets = ca.SX.sym("sets", 3)
     p = ca.SX.sym("p", leg._p_size(geometry))
@@ -90,10 +107,37 @@ def memory_functions_of(leg, geometry: str = "constant") -> dict[str, ca.Functio
     x = ca.SX.sym("x")
     lo = lower(x, p) if lower is not None and leg.axial_memory else None
     if lo is not None:
-        # the crush onset's kink inside a step (symcushion.scheme.foot_step.FeetStep.kink_kick)
+        # the axial element's force law along a step, for the kinks inside it
+        # (symcushion.scheme.foot_step.FeetStep.kink_kick): the loading curve it crushes along
+        # and the elastic line of its set (A1), (A5), which it reloads along
         fns["strut_crush_curve"] = ca.Function(
             "strut_crush_curve", [x, p], [lo, ca.jacobian(lo, x)], ["x", "p"], ["f", "slope"])
+        s, rate = ca.SX.sym("set"), ca.SX.sym("rate")
+        line = leg.axial_elastic_line_expr(x, s, rate, p)
+        fns["strut_elastic_line"] = ca.Function(
+            "strut_elastic_line", [x, s, rate, p], [line, ca.jacobian(line, x)],
+            ["x", "set", "rate", "p"], ["f", "slope"])
+        force = ca.SX.sym("P", 3)
+        fns["strut_band_force"] = ca.Function(
+            "strut_band_force", [r, force, rate, p],
+            [leg.axial_band_force_expr(r, force, rate, p)], ["r", "P", "rate", "p"], ["f"])
     return fns
+
+
+def elastic_line(curve, x, s, rate, theta=None):
+    """An element's elastic line through its set ``s`` at deflection ``x``: k_e (x − s)
+    + c·ė (N or N·m), the trial force of (A1) with the viscous damper on the elastic
+    line (A5), ė = ``rate`` the elastic deflection's rate; k_e from ``theta``'s curve
+    parameters (``absorber.elastic_stiffness``)."""
+    return absorber.elastic_stiffness(curve, theta) * (x - s) + curve.damping * rate
+
+
+def band_part(curve, x, force, rate, theta=None):
+    """The part of an element's force ``force`` at deflection ``x`` that is (A1) with its
+    elastic line's damper (A5): less its end stop and its orifice damper, which act in
+    parallel (``absorber.element_force``), the orifice at the rate ``rate``."""
+    return (force - curve.end_stop(x, theta)
+            - curve.orifice * rate * ca.fabs(rate))
 
 
 class bound_geometry:

@@ -15,7 +15,7 @@ from __future__ import annotations
 import casadi as ca
 
 from symcushion.legs import absorber
-from symcushion.legs.leg_scheme import cached_memory_functions
+from symcushion.legs.leg_scheme import band_part, cached_memory_functions, elastic_line
 
 __all__ = ["StrutMemory", "FREE_FOOT_NEWTON_STEPS"]
 
@@ -97,6 +97,27 @@ class StrutMemory:
         el = self._axial()
         lo, _ = absorber.band(el.curve, x, self._theta(el, p))
         return lo
+
+    def axial_elastic_line_expr(self, x, s, rate, p):
+        """The axial element's elastic line through its set ``s`` at deflection ``x`` (N):
+        k_e (x − s) + c·ė, the trial force of (A1) with its damper (A5), ė the elastic
+        deflection's rate ``rate`` (m/s); what the element carries between its bounds."""
+        el = self._axial()
+        return elastic_line(el.curve, x, s, rate, self._theta(el, p))
+
+    def axial_band_force_expr(self, r, P, rate, p):
+        """The axial element's force (A1), (A5) that the foot force ``P`` (N, body axes)
+        carries at foot ``r``: S of P = S e_S + (M_β/L) e_β + (M_γ/L) e_γ (2.1), or of
+        P = Jᵀ f (the potential law), less its end stop and its orifice damper at the
+        elastic deflection's rate ``rate`` (N)."""
+        g = self.geometry(r, p)
+        if self.law == "paper":
+            A = ca.horzcat(g["e_S"], g["e_beta"] / g["L"], g["e_gamma"] / g["L"])   # (2.1)
+        else:
+            A = self.deflection_gradients(r, p).T
+        el = self._axial()
+        return band_part(el.curve, self._deflections(g)["S"], ca.solve(A, P)[0], rate,
+                         self._theta(el, p))
 
     def free_foot_expr(self, sets, p, x_start, mean_rate, dt):
         """A free foot at the end of a step (body frame): along e₀ at the axial

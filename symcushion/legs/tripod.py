@@ -14,7 +14,8 @@ delta_S, e_S, ...)``, ``strut_force(r, v, p) -> P`` and ``strut_stiffness(r,
 v, p) -> Dp``. :class:`InvertedTripod` provides those three under the
 ``strut_*`` names (the second output of ``strut_geometry`` is δ_S, as for the
 strut) besides its own ``tripod_*`` Functions built from the same
-expressions. It has no memory law (``axial_state`` is False).
+expressions, and, where its elements keep sets or have dampers, the memory
+law's Functions (``symcushion.legs.leg_scheme``; the primary is the axial element).
 
 This module owns the leg: its elements and curves, their forces, the memory
 law's expressions, the singular-pose checks and the Functions built on the
@@ -31,8 +32,8 @@ import numpy as np
 from symcushion.legs import absorber
 from symcushion.legs.curve_base import Curve
 from symcushion.layout.params import TRIPOD_GEOMETRY_FIELDS
-from symcushion.legs.leg_scheme import (cached_memory_functions, curve_param_names,
-    curve_param_values)
+from symcushion.legs.leg_scheme import (band_part, cached_memory_functions, curve_param_names,
+    curve_param_values, elastic_line)
 from symcushion.validation import real, vector
 from symcushion.legs.tripod_geometry import (GEOMETRY_SIZE, ZERO_LENGTH, angle_from_parallel,
     numeric_geometry, tripod_deflections, tripod_geometry_expr, tripod_rest_lengths)
@@ -336,6 +337,30 @@ class InvertedTripod(TripodEvaluation):
             el.curve, q[i], sets[i], self._theta(el, p),
             None if rate is None else (rate[0], rate[1][i]))
             for i, el in enumerate(self.elements)])
+
+    def axial_lower_bound_expr(self, x, p):
+        """lo(x) of (A1) for the primary, the loading curve it crushes along (N), or None
+        where it keeps no set or its band has no lower bound."""
+        el = self.elements[0]
+        if not el.curve.has_memory:
+            return None
+        lo, _ = absorber.band(el.curve, x, self._theta(el, p))
+        return lo
+
+    def axial_elastic_line_expr(self, x, s, rate, p):
+        """The primary's elastic line through its set ``s`` (N): k_e (x − s) + c·ė (A1),
+        (A5), ė = ``rate`` its elastic deflection's rate (m/s)."""
+        el = self.elements[0]
+        return elastic_line(el.curve, x, s, rate, self._theta(el, p))
+
+    def axial_band_force_expr(self, r, P, rate, p):
+        """The primary's force (A1), (A5) that the foot force ``P`` (N, body axes) carries
+        at foot ``r``, f of P = Jᵀ f (T1), less its end stop and its orifice damper at
+        the elastic deflection's rate ``rate`` (N)."""
+        q = self.geometry(r, p)["q"]
+        el = self.elements[0]
+        return band_part(el.curve, q[0], ca.solve(ca.jacobian(q, r).T, P)[0], rate,
+                         self._theta(el, p))
 
     def free_foot_expr(self, sets, p, x_start, mean_rate, dt):
         """A free foot at the end of a step (body frame): each element at its free
