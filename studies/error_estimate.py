@@ -102,6 +102,34 @@ def summary(rows, quantities, name, scenes=None) -> str:
             f"overestimated by more; median ratio {np.median(r):.2f}")
 
 
+#: The ratios e(2Δt)/e(Δt) of true errors that some order of convergence in
+#: [0.5, 3] gives: outside them (or where the signed error of a peak changes
+#: sign) a halving is not asymptotic and no companion run can track its error.
+ASYMPTOTIC_RATIOS = (2 ** 0.5, 2 ** 3)
+
+
+def non_asymptotic(rows) -> str:
+    """How many halvings Δt → Δt/2 are not asymptotic, and how many of the fine
+    companion's misses fall at one."""
+    table = {(r["scene"], r["quantity"], r["dt_s"]): r for r in rows}
+    lo, hi = ASYMPTOTIC_RATIOS
+    halvings = bad = misses = at_bad = 0
+    for (scene, quantity, dt), r in table.items():
+        half = table.get((scene, quantity, dt / 2))
+        if half is None:
+            continue
+        ratio = r["true_error"] / half["true_error"]
+        flips = quantity in PEAKS and np.sign(r["value"] - r["reference"]) != np.sign(
+            half["value"] - half["reference"])
+        odd = flips or not lo <= ratio <= hi
+        halvings, bad = halvings + 1, bad + odd
+        miss = not 1 / FACTOR <= r["fine_ratio"] <= FACTOR
+        misses, at_bad = misses + miss, at_bad + (miss and odd)
+    return (f"{bad} of {halvings} halvings not asymptotic (true-error ratio outside "
+            f"[{lo:.2f}, {hi:g}] or a sign change); {at_bad} of the fine companion's "
+            f"{misses} misses there")
+
+
 def figure(rows, path):
     import matplotlib
 
@@ -177,6 +205,7 @@ def main():
         print("  final state:", summary(rows, FINAL, name))
         print("  peaks without the tutorial lander:", summary(rows, PEAKS, name, others))
         print("  final state without it:", summary(rows, FINAL, name, others))
+    print("\n" + non_asymptotic(rows))
     with open(out / "error_estimate.csv", "w", newline="") as fh:
         writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
         writer.writeheader()
