@@ -12,6 +12,11 @@ from __future__ import annotations
 import numpy as np
 
 from symcushion.run.checks import check_scene
+from symcushion.model.scene import scene_from_dict
+from symcushion.design.optimise.study import study_from_dict as optimise_study_from_dict
+from symcushion.design.robust.study import robust_study_from_dict
+from symcushion.envelope.cases import initial_states
+from symcushion.envelope.study import study_from_dict as envelope_study_from_dict
 
 __all__ = ["file_kind", "check_file"]
 
@@ -56,30 +61,20 @@ def check_file(data: dict, source: str, base_dir=".") -> tuple:
     """
     kind = file_kind(data)
     if kind == "scene":
-        from symcushion.model.scene import scene_from_dict
-
         return kind, [("scene", check_scene(scene_from_dict(data, source)))]
     if kind == "optimise":
-        from symcushion.design.optimise.study import study_from_dict
-
-        problem = study_from_dict(data, source, base_dir=base_dir).problem
+        problem = optimise_study_from_dict(data, source, base_dir=base_dir).problem
         return kind, [(f"scenario {sc.name}", check_scene(sc.scene, x0=sc.x0))
                       for sc in problem.scenarios]
     if kind == "design":
-        from symcushion.design.robust.study import robust_study_from_dict
-
         study = robust_study_from_dict(data, source).envelope
     else:
-        from symcushion.envelope.study import study_from_dict
-
-        study = study_from_dict(data, source)
+        study = envelope_study_from_dict(data, source)
     return kind, [("median touchdown", _check_median_case(study))]
 
 
 def _check_median_case(study) -> list:
     """The findings of an envelope study's scene at the median of every condition."""
-    from symcushion.envelope.cases import initial_states
-
     median = {name: r.transform(np.array([0.5])) for name, r in study.ranges.items()}
     x0, _ = initial_states(study, median)
     return check_scene(study.scene, x0=x0[:, 0])

@@ -33,6 +33,10 @@ from symcushion.run.time_loops import (MAX_STEP_DT, MAX_STEP_FRACTION, MIN_STEP_
 from symcushion.scheme.touchdown import STEP_CRITERION_EPS, StepModel, build_model, initial_state
 from symcushion.validation import real
 from symcushion.run.trajectory import Trajectory, initial_output, trajectory_from
+from symcushion.run.checks import preflight
+from symcushion.model.scene import Scene, load_scene
+from symcushion.run.monitor import RunMonitor
+from symcushion.run.results import ResultWriter, result_dir, trajectory_columns
 
 __all__ = ["Trajectory", "trajectory_from", "initial_output", "simulate", "save", "RunWarning",
            "BLOCK_STEPS", "KEEP_ROWS", "MAX_EVENTS", "MIN_STEP_FRACTION", "MAX_STEP_FRACTION",
@@ -53,9 +57,6 @@ def _check_arguments(scene, model, x0, p, adaptive, eps, stability, monitor, sin
     """Validate :func:`simulate`'s arguments and check the scene (``checks.preflight``);
     return scene, model, x0, p, stability, monitor, keep_rows. ``adaptive`` is true
     for every variable-step run (the §3 criterion or error control)."""
-    from symcushion.run.checks import preflight
-    from symcushion.model.scene import Scene, load_scene
-
     if isinstance(scene, (str, Path)):
         scene = load_scene(scene)
     if not isinstance(scene, Scene):
@@ -87,8 +88,6 @@ def _check_arguments(scene, model, x0, p, adaptive, eps, stability, monitor, sin
     preflight(scene, model, x0=x0, ignore=("dt_above_duration",) * bool(adaptive)
               + ("dt_unstable",) * bool(stability))
     if monitor is True:
-        from symcushion.run.monitor import RunMonitor
-
         monitor = RunMonitor(scene, model, x0=x0)
     elif monitor is False:
         monitor = None
@@ -224,8 +223,6 @@ def save(traj: Trajectory, out_dir, name: str, metadata: dict | None = None) -> 
     (``symcushion.run.results``); a long run streams instead (``simulate(...,
     sink=ResultWriter(...))``). Returns the paths as a dict.
     """
-    from symcushion.run.results import ResultWriter, result_dir, trajectory_columns
-
     directory = result_dir(out_dir, name, "out_dir")
     with ResultWriter(directory, trajectory_columns(traj.n_legs)) as writer:
         writer.append(traj.rows)

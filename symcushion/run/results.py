@@ -37,6 +37,7 @@ from symcushion.layout.vectors import MODES, output_columns, state_columns
 from symcushion.run.output_files import (OutputExists, atomic_write_text, check_out_dir,
     check_output_file, claim_output, jsonable, remove_stale, replacing, result_dir,
     temporary_beside, to_json, versions)
+from symcushion.run.matlab import write_table_mat
 
 __all__ = ["trajectory_columns", "column_unit", "check_out_dir", "check_output_file",
            "result_dir", "atomic_write_text", "write_csv", "jsonable", "to_json", "replacing", "ResultWriter",
@@ -242,8 +243,6 @@ class ResultWriter:
 
     def _write_mat(self, metadata: dict) -> Path:
         """``trajectory.mat`` from the raw rows, one column in memory at a time."""
-        from symcushion.run.matlab import write_table_mat
-
         columns = _ColumnFile(self._raw_tmp, self.rows, self.columns,
                               self.directory / MAT_NAME)
         try:

@@ -17,6 +17,8 @@ from symcushion.model.obstacles import closest_obstacle
 from symcushion.layout.vectors import MODES, output_layout, state_layout
 from symcushion.scheme.quaternion import quat_to_rot_np
 from symcushion.scheme.touchdown import StepModel
+from symcushion.run.results import (check_output_file, column_unit, read_result, to_json,
+    trajectory_columns, write_csv)
 
 __all__ = ["Trajectory", "trajectory_from", "initial_output", "contact_points",
            "UP_WITHOUT_GRAVITY"]
@@ -97,8 +99,6 @@ class Trajectory:
     @classmethod
     def load(cls, result_dir) -> "Trajectory":
         """Read a result directory written by :func:`save` or ``symcushion simulate``."""
-        from symcushion.run.results import read_result, trajectory_columns
-
         columns, data, meta = read_result(result_dir)
         n_legs = sum(1 for c in columns if c.endswith("_mode_1"))
         if n_legs < 1 or columns != trajectory_columns(n_legs):
@@ -122,8 +122,6 @@ class Trajectory:
             raise ImportError("Trajectory.to_dataframe needs pandas, which is not installed; "
                               "`pip install pandas`, or use the arrays of the Trajectory "
                               "(traj.t, traj.position, ...) directly.") from None
-        from symcushion.run.results import trajectory_columns
-
         frame = pd.DataFrame(self.rows, columns=trajectory_columns(self.n_legs))
         for j in range(self.n_legs):
             frame[f"leg{j}_mode_1"] = frame[f"leg{j}_mode_1"].round().astype(int).map(MODES)
@@ -137,16 +135,11 @@ class Trajectory:
 
     def save_csv(self, path):
         """Write the rows as ``trajectory.csv`` does (atomically) to ``path``."""
-        from symcushion.run.results import check_output_file, trajectory_columns, write_csv
-
         path = check_output_file(path, "path")
         return write_csv(path, trajectory_columns(self.n_legs), self.rows)
 
     def save_npz(self, path):
         """Write ``data`` (the rows), ``columns``, ``units``, ``metadata`` (JSON) to ``path``."""
-        from symcushion.run.results import (column_unit, check_output_file, to_json,
-            trajectory_columns)
-
         path = check_output_file(path, "path")
         cols = trajectory_columns(self.n_legs)
         np.savez(path, data=self.rows, columns=np.array(cols),

@@ -14,6 +14,7 @@ import casadi as ca
 import numpy as np
 
 from symcushion.model.obstacles import Sphere, closest_obstacle
+from symcushion.run.output_files import replacing
 
 __all__ = ["animate", "draw_frame", "frame_indices", "DEFAULT_FRAMES", "DEFAULT_FPS"]
 
@@ -199,8 +200,6 @@ def animate(traj, scene, path, frames: int = DEFAULT_FRAMES, fps: int = DEFAULT_
     import matplotlib.pyplot as plt
     from matplotlib.animation import FuncAnimation, PillowWriter
 
-    from symcushion.run.output_files import replacing
-
     if isinstance(fps, bool) or not isinstance(fps, (int, np.integer)) or fps < 1:
         raise ValueError(f"`fps` must be a positive integer, got {fps!r}; e.g. 20.")
     if len(scene.legs) != traj.n_legs:
@@ -222,8 +221,6 @@ def draw_frame(traj, scene, path, time: float | None = None) -> Path:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from symcushion.run.output_files import replacing
 
     if time is None:
         k = int(np.argmax(np.linalg.norm(traj.force, axis=-1).sum(axis=1)))

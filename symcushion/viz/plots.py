@@ -10,6 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from symcushion.run.output_files import replacing
 
 __all__ = ["summary_figure", "EVENT_STYLES", "MAX_EVENT_LINES"]
 
@@ -144,8 +145,6 @@ def summary_figure(traj, path=None, title: str | None = None):
     fig.suptitle(title, fontsize=11)
     fig.tight_layout(rect=(0, 0, 1, 0.93))
     if path is not None:
-        from symcushion.run.output_files import replacing
-
         with replacing(Path(path)) as tmp:
             fig.savefig(tmp, dpi=DPI, format="png", metadata={"Software": None})
     return fig

@@ -24,8 +24,10 @@ import numpy as np
 from symcushion.viz.animate import (ARROW_FRACTION, MODE_COLORS, scene_bounds, hinge_positions, surface_heights,
     frame_indices)
 from symcushion.viz.chromium import BROWSERS, Chromium, browser
-from symcushion.run.output_files import check_output_file
+from symcushion.run.output_files import atomic_write_text, check_output_file, replacing
 from symcushion.run.results import JSON_NAME
+from symcushion.run.driver import Trajectory
+from symcushion.model.scene import scene_from_dict
 
 __all__ = ["load_run", "viewer_figure", "write_viewer", "screenshots",
            "DEFAULT_VIEW_FRAMES", "MAX_PLOT_POINTS", "VIEWER_NAME", "TIME_HOOK", "INSTALL_HINT"]
@@ -117,9 +119,6 @@ def load_run(result_dir):
     ValueError
         Its run.json records no scene (the hinges and obstacles to draw).
     """
-    from symcushion.run.driver import Trajectory
-    from symcushion.model.scene import scene_from_dict
-
     directory = _check_result_dir(result_dir)
     traj = Trajectory.load(directory)
     if not traj.info.get("scene"):
@@ -324,8 +323,6 @@ def write_viewer(result_dir, out=None, frames: int = DEFAULT_VIEW_FRAMES) -> Pat
     -------
     Path
     """
-    from symcushion.run.output_files import atomic_write_text
-
     _plotly()                               # before any work: say how to install it
     _check_result_dir(result_dir)           # before --out's default is made in it
     out = check_output_file(Path(result_dir) / VIEWER_NAME if out is None else out, "--out")
@@ -385,8 +382,6 @@ def screenshots(page, times, pngs, size=SCREENSHOT_SIZE, timeout: float = 120.0)
         The frame (slider step) shown in each screenshot.
     """
     import base64
-
-    from symcushion.run.output_files import replacing
 
     page = Path(page).resolve()
     if not page.is_file():

@@ -16,6 +16,7 @@ from symcushion.layout.vectors import state_layout
 from symcushion.scheme.measures import measures_function
 from symcushion.design.optimise.geometry import PRACTICAL_KINDS
 from symcushion.design.optimise.spec import Block, up_direction, VIOLATION_TOL
+from symcushion.design.compiled_nlp import compile_design
 
 __all__: list = ["DESIGN_OUTPUTS", "design_outputs_of"]
 
@@ -126,7 +127,6 @@ class Constraints:
         ``compile_design`` (threads, cflags, directions, client). Returns the
         :class:`~symcushion.design.compiled_nlp.CompiledDesign`.
         """
-        from symcushion.design.compiled_nlp import compile_design  # the C path needs gcc: loaded on demand
         built = compile_design(self, cache_dir, progress=progress, **options)
         self._compiled_nlp, self._fg, self._outputs = built.nlp, built.fg, built.outputs
         return built

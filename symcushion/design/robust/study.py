@@ -37,6 +37,7 @@ from symcushion.design.robust.risk import (DEFAULT_ALPHA, DEFAULT_HORIZON, DEFAU
 from symcushion.design.robust.margins import DEFAULT_SHARPNESS
 from symcushion.design.robust.select import (ANY_DEPTH, DEFAULT_FAIL_SHARE, DEFAULT_WORST_MARGIN,
     left_out, select_scenarios)
+from symcushion.run.output_files import atomic_write_text, jsonable
 
 __all__ = ["RobustStudy", "robust_study_from_dict", "load_robust_study", "run_robust_study"]
 
@@ -172,7 +173,6 @@ def _write_geometry(result, out_dir):
     import json
     from pathlib import Path
 
-    from symcushion.run.output_files import atomic_write_text, jsonable
     path = Path(out_dir) / "geometry.json"
     atomic_write_text(path, json.dumps(jsonable(result.geometry), indent=2,
                                        ensure_ascii=False) + "\n")
