@@ -47,9 +47,8 @@ from symcushion.layout.vectors import state_layout
 from symcushion.model.scene import read_toml
 from symcushion.scheme.touchdown import build_model
 
-ROOT = Path(__file__).resolve().parent.parent
-STUDY = ROOT / "studies" / "envelope_lander.toml"
-CACHE = ROOT / "build" / "envelope"
+from bench_envelope import CACHE, ROOT, STUDY   # a script beside this one
+
 OUT = ROOT / "out" / "envelope_dt"
 #: Cases compared and the aim: fewer than this share change class at a halving.
 CASES = 2000

@@ -23,20 +23,26 @@ import numpy as np
 
 from symcushion.legs import absorber
 
-__all__ = ["curve_param_names", "curve_param_values", "checked_params", "cached_memory_functions",
+__all__ = ["CurveParams", "checked_params", "cached_memory_functions",
            "memory_functions_of", "elastic_line", "band_part", "bound_geometry"]
 
 
-def curve_param_names(elements) -> tuple[str, ...]:
-    """``element.parameter`` names of a leg's tunable curves, in the order of ``p``."""
-    return tuple(f"{el.name}.{n}" for el in elements if el.curve.tunable
-                 for n in el.curve.param_names)
+class CurveParams:
+    """The curve parameters of a leg scheme with ``elements`` (a mixin of both schemes):
+    the entries of ``p`` its tunable curves own."""
 
+    @property
+    def param_names(self) -> tuple[str, ...]:
+        """``element.parameter`` names of the tunable curves, in the order of ``p``
+        (e.g. ``S.k``)."""
+        return tuple(f"{el.name}.{n}" for el in self.elements if el.curve.tunable
+                     for n in el.curve.param_names)
 
-def curve_param_values(elements) -> np.ndarray:
-    """The default values of a leg's tunable curve parameters (``curve_param_names``)."""
-    vals = [el.curve.param_values for el in elements if el.curve.tunable]
-    return np.concatenate(vals) if vals else np.zeros(0)
+    @property
+    def param_values(self) -> np.ndarray:
+        """Default values of ``p``."""
+        vals = [el.curve.param_values for el in self.elements if el.curve.tunable]
+        return np.concatenate(vals) if vals else np.zeros(0)
 
 
 def checked_params(leg, p) -> np.ndarray:

@@ -61,7 +61,7 @@ from typing import Optional
 import casadi as ca
 import numpy as np
 
-from symcushion.legs.leg_scheme import curve_param_names, curve_param_values
+from symcushion.legs.leg_scheme import CurveParams
 from symcushion.legs.characteristics import Curve, Linear
 from symcushion.layout.vectors import LEG_GEOMETRY_FIELDS
 from symcushion.legs.strut_geometry import GEOMETRY_SIZE, HingeGeometry, check_angle
@@ -108,7 +108,7 @@ class _Element:
     offset: int          # start of its parameters in p (tunable only)
 
 
-class HingedStrut(HingeGeometry, StrutMemory, StrutEvaluation):
+class HingedStrut(CurveParams, HingeGeometry, StrutMemory, StrutEvaluation):
     """A strut on a spherical hinge with axial and bending elements (Fig. 2).
 
     Parameters
@@ -192,17 +192,7 @@ class HingedStrut(HingeGeometry, StrutMemory, StrutEvaluation):
         self._memory_functions = {}
         self._gradients = {}            # strut_deflection_gradients, by size of p
 
-    # -- parameters -----------------------------------------------------------
-    @property
-    def param_names(self) -> tuple[str, ...]:
-        """Names of the entries of ``p`` (tunable curves only), e.g. ``S.k``."""
-        return curve_param_names(self.elements)
-
-    @property
-    def param_values(self) -> np.ndarray:
-        """Default values of ``p``."""
-        return curve_param_values(self.elements)
-
+    # -- parameters (param_names, param_values: CurveParams) ------------------
     def _theta(self, el: _Element, p):
         if el.curve.tunable:
             return p[el.offset:el.offset + el.curve.n_params]

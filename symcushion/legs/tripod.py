@@ -32,8 +32,8 @@ import numpy as np
 from symcushion.legs import absorber
 from symcushion.legs.curve_base import Curve
 from symcushion.layout.params import TRIPOD_GEOMETRY_FIELDS
-from symcushion.legs.leg_scheme import (band_part, cached_memory_functions, curve_param_names,
-    curve_param_values, elastic_line)
+from symcushion.legs.leg_scheme import (CurveParams, band_part, cached_memory_functions,
+    elastic_line)
 from symcushion.validation import real, vector
 from symcushion.legs.tripod_geometry import (GEOMETRY_SIZE, ZERO_LENGTH, angle_from_parallel,
     numeric_geometry, tripod_deflections, tripod_geometry_expr, tripod_rest_lengths)
@@ -66,7 +66,7 @@ class _Element:
     offset: int          # start of its parameters in p (tunable only)
 
 
-class InvertedTripod(TripodEvaluation):
+class InvertedTripod(CurveParams, TripodEvaluation):
     """Cantilever inverted-tripod leg: primary strut on h₁, two secondaries to its pin Q.
 
     Parameters
@@ -162,16 +162,6 @@ class InvertedTripod(TripodEvaluation):
     def element_extent(self, name: str) -> float:
         """The range of an element's deflection worth sampling (m)."""
         return self.length
-
-    @property
-    def param_names(self) -> tuple[str, ...]:
-        """Names of the entries of ``p`` (tunable curves only), e.g. ``primary.k``."""
-        return curve_param_names(self.elements)
-
-    @property
-    def param_values(self) -> np.ndarray:
-        """Default values of ``p``."""
-        return curve_param_values(self.elements)
 
     @property
     def rest_foot(self) -> np.ndarray:
