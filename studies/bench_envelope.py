@@ -62,7 +62,7 @@ from bench_check import BITWISE, check_equal  # studies/bench_check.py
 from symcushion.run import report
 from symcushion.envelope import (CLASSES, CONFIDENCE, build_envelope, case_params, classify,
     envelope_function, evaluate, initial_states, load_study, reach, run_batch, run_envelope,
-    sample_conditions, wilson_interval)
+    sample_conditions, study_stop, wilson_interval)
 from symcushion.envelope.study import study_from_dict
 from symcushion.model.scene import read_toml
 from symcushion.scheme.touchdown import build_model
@@ -156,8 +156,9 @@ def check_cases(study, cache_dir=CACHE, count: int = CHECK_CASES) -> None:
                          f"{conditions['mu']}.")
     x0, gravity = initial_states(study, conditions)
     p = case_params(scene, conditions["mu"], gravity)
-    x_end, summary = run_batch(build_envelope(scene, cache_dir), x0, p, scene.dt)
-    x_ref, summary_ref = envelope_function(build_model(scene)).map(count)(x0, p, scene.dt)
+    stop = study_stop(study)
+    x_end, summary = run_batch(build_envelope(scene, cache_dir), x0, p, scene.dt, stop=stop)
+    x_ref, summary_ref = envelope_function(build_model(scene)).map(count)(x0, p, scene.dt, stop)
     name = "envelope_case on the CasADi VM (same x0, p, Δt)"
     what = f"{scene.name}, first {count} cases, compiled envelope_case"
     check_equal(BENCH, f"{what}: final states", x_end, np.asarray(x_ref), rtol=BITWISE,

@@ -18,6 +18,7 @@ import pytest
 
 from symcushion import envelope as ev
 from symcushion.compiled.codegen import find_compiler
+from symcushion.envelope.cases import STOP_REST_SHARE
 from symcushion.model.scene import read_toml
 from symcushion.scheme.touchdown import build_model
 
@@ -151,7 +152,7 @@ def test_slope_frame_equals_a_scene_with_rotated_gravity(study):
     x0, g = ev.initial_states(study, cond)
     f = ev.envelope_function(build_model(study.scene), steps)
     p = ev.case_params(study.scene, cond["mu"], g)[:, 0]
-    x_end, summary = f(x0[:, 0], p, study.scene.dt)
+    x_end, summary = f(x0[:, 0], p, study.scene.dt, ev.NO_STOP)
     rotated = build_model(study.scene.with_(gravity=g[:, 0]))
     X, _ = rotated.rollout(steps)(x0[:, 0], rotated.default_p, study.scene.dt)
     reference = np.asarray(X)[:, -1]
@@ -226,10 +227,36 @@ def test_hand_built_touchdowns_are_classified_by_the_physics(study, library, cac
                             "slope_deg": [0.0, 40.0, 0.0], "yaw_deg": [0.0, 45.0, 0.0],
                             "tilt_deg": 0.0}, cache_dir=cache)
     assert list(c["class"]) == ["stable", "tip_over", "stroke"]
-    assert c["max_tilt_deg"][0] < 5 and c["max_tilt_deg"][1] > 90
+    # the tipping case stops once its tilt passes the limit; run on, it falls over
+    assert c["max_tilt_deg"][0] < 5 and study.limits.tilt_deg < c["max_tilt_deg"][1] < 40
+    assert c["end_time"][1] < study.scene.duration
+    full = ev.evaluate(study.with_(stop=False), {"vertical_speed": 2.0, "slope_deg": 40.0,
+                                                 "yaw_deg": 45.0}, cache_dir=cache)
+    assert list(full["class"]) == ["tip_over"] and full["max_tilt_deg"][0] > 90
     assert c["margin_tip_over"][1] < 0 < c["margin_tip_over"][0]
     assert c["max_stroke"][2] > study.limits.stroke > c["max_stroke"][0]
     assert np.all(c["first_contact_time"] > 0)
+
+
+@needs_cc
+def test_stopping_decided_cases_keeps_every_class(study, library, cache):
+    """A case stops once it has tipped over or come to rest on three feet; every
+    class and every case that did not stop is as in the full run, and a case at
+    rest stops well inside the at-rest limit."""
+    stopped = ev.run_envelope(study, cache_dir=cache, progress=False, plots=False).columns
+    full = ev.run_envelope(study.with_(stop=False), cache_dir=cache, progress=False,
+                           plots=False).columns
+    assert list(stopped["class"]) == list(full["class"])
+    early = stopped["end_time"] < study.scene.duration - study.scene.dt / 2
+    assert 0.3 < early.mean() < 1          # the stop is used, and not on every case
+    tipped = early & (stopped["class"] == "tip_over")
+    assert np.all(stopped["max_tilt_deg"][tipped] > study.limits.tilt_deg)
+    rest = early & ~tipped
+    assert rest.any() and np.all(stopped["final_motion"][rest]
+                                 < STOP_REST_SHARE * study.limits.rest_speed)
+    for name in ("max_stroke", "peak_decel", "rebound_speed", "final_speed"):
+        assert np.array_equal(stopped[name][~early], full[name][~early]), name
+    assert np.all(full["end_time"] > study.scene.duration - study.scene.dt / 2)
 
 
 @needs_cc

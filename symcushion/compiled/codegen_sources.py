@@ -14,14 +14,13 @@ load compiled code (``symcushion.compiled.codegen_load``).
 from __future__ import annotations
 
 import os
-import re
 from dataclasses import dataclass
 from pathlib import Path
 
 import casadi as ca
 import numpy as np
 
-from symcushion.compiled.cbuild import CODEGEN_OPTIONS, TARGET_CLONES
+from symcushion.compiled.cbuild import CODEGEN_OPTIONS, with_clones
 from symcushion.compiled.codegen_hoist import CORE, PARAMETRIC, STATES
 from symcushion.layout.vectors import default_p, state_columns
 from symcushion.model.scene import Scene
@@ -112,7 +111,7 @@ def generate_source(name: str, functions, out_dir: Path, tail: str = "",
     source = out_dir / (name + ".c")
     text = source.read_text()
     if clones:
-        text = _with_clones(text)
+        text = with_clones(text)
     if tail:
         text = _before_closing(text, tail)
     source.write_text(text)
@@ -166,24 +165,6 @@ def rollout_source(model: StepModel, steps: int, nq: int,
 
 _OPEN_C = '#ifdef __cplusplus\nextern "C" {\n#endif\n'
 _CLOSE_C = '#ifdef __cplusplus\n} /* extern "C" */\n#endif\n'
-
-
-#: The definitions of CasADi's functions in its generated C (one per Function).
-_DEFINITION = re.compile(r"^static int (casadi_f\d+)\((.*)\) \{$", re.M)
-
-
-def _with_clones(text: str) -> str:
-    """CasADi's C with ``SYMCUSHION_CLONES`` on each of its function definitions, and
-    the macro (``cbuild.TARGET_CLONES``) defined before the first."""
-    first = _DEFINITION.search(text)
-    if first is None:
-        raise RuntimeError("no function definition found in CasADi's generated C: has "
-                           "its format changed? Generate without clones.")
-    # before the comment CasADi writes on the line above (the Function's signature)
-    start = text.rfind("\n", 0, first.start() - 1) + 1
-    start = start if text.startswith("/*", start) else first.start()
-    text = text[:start] + TARGET_CLONES + "\n" + text[start:]
-    return _DEFINITION.sub(r"SYMCUSHION_CLONES static int \1(\2) {", text)
 
 
 def _before_closing(text: str, insert: str) -> str:

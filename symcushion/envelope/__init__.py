@@ -19,8 +19,8 @@ from symcushion.envelope.study import (sample_conditions, VARIABLES, MAX_SLOPE_D
     DEFAULT_CLEARANCE, DEFAULT_REST_SPEED, Range, Limits, EnvelopeStudy, study_from_dict,
     load_study)
 from symcushion.envelope.sampling import SOBOL_BITS, sobol, sample_unit
-from symcushion.envelope.cases import (SUMMARY, DECEL_FILTER_TIME, initial_states,
-    envelope_function, case_params, reach, apply_design)
+from symcushion.envelope.cases import (SUMMARY, DECEL_FILTER_TIME, NO_STOP, initial_states,
+    envelope_function, case_params, reach, apply_design, stop_vector, study_stop)
 from symcushion.envelope.build import DEFAULT_CACHE, build_envelope, run_batch
 from symcushion.envelope.classify import CLASSES, classify
 from symcushion.envelope.statistics import CONFIDENCE, wilson_interval, EnvelopeResult
@@ -34,7 +34,8 @@ __all__ = ["VARIABLES", "MAX_SLOPE_DEG", "DEFAULT_BATCH", "DEFAULT_CLEARANCE", "
            "Range", "Limits",
            "EnvelopeStudy", "study_from_dict", "load_study", "SOBOL_BITS", "sobol", "sample_unit",
            "sample_conditions", "SUMMARY", "DECEL_FILTER_TIME", "initial_states",
-           "envelope_function", "case_params", "reach", "apply_design", "DEFAULT_CACHE",
+           "envelope_function", "case_params", "reach", "apply_design", "NO_STOP",
+           "stop_vector", "study_stop", "DEFAULT_CACHE",
            "build_envelope", "run_batch",
            "CLASSES", "classify", "CONFIDENCE", "wilson_interval", "EnvelopeResult",
            "PROGRESS_INTERVAL", "PROGRESS_LOG_INTERVAL", "run_envelope", "evaluate", "write_result", "LOGISTIC_RIDGE",

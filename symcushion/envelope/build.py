@@ -22,7 +22,7 @@ from symcushion.compiled.codegen import compile_cached, find_compiler
 from symcushion.model.scene import scene_from_dict
 from symcushion.model.scene_data import Scene
 from symcushion.scheme.touchdown import build_model
-from symcushion.envelope.cases import envelope_function, SUMMARY
+from symcushion.envelope.cases import envelope_function, NO_STOP, STOP, SUMMARY
 
 __all__ = ["DEFAULT_CACHE", "build_envelope", "run_batch"]
 
@@ -111,7 +111,8 @@ def build_envelope(scene: Scene, cache_dir=None, *, steps: int | None = None,
     note = (f"envelope_case for '{scene.name}' (method {scene.method}, "
             f"{'μ an input' if scene.mu > 0 else 'frictionless'}, {n_steps} steps)")
     built = compile_cached(envelope_function(model, steps), _SOURCE, _LIBRARY, cache,
-                           safe_file_name(scene.name), note=note if progress else None)
+                           safe_file_name(scene.name), note=note if progress else None,
+                           clones=True)
     if built.fresh:
         (built.folder / _MANIFEST).write_text(json.dumps({
             "scene": scene.name, "method": scene.method, "friction": scene.mu > 0,
@@ -146,7 +147,7 @@ def _case_function(library) -> ca.Function:
     return _LOADED[key]
 
 
-def run_batch(library, x0, p, dt, threads: int = 1) -> tuple:
+def run_batch(library, x0, p, dt, threads: int = 1, stop=NO_STOP) -> tuple:
     """Run a batch of cases through a compiled ``envelope_case``.
 
     Parameters
@@ -160,6 +161,9 @@ def run_batch(library, x0, p, dt, threads: int = 1) -> tuple:
     dt : float
     threads : int
         Threads of ``map(B, "thread", threads)``; 1 runs serially.
+    stop : array_like, shape (3,)
+        When a case stops (:func:`~symcushion.envelope.cases.stop_vector`); default
+        never: every case runs the whole duration.
 
     Returns
     -------
@@ -177,11 +181,14 @@ def run_batch(library, x0, p, dt, threads: int = 1) -> tuple:
     key = (id(f), count, threads)
     if key not in _MAPS:
         _MAPS[key] = f.map(count, "thread", threads) if threads > 1 else f.map(count, "serial")
-    x_end, summary = _MAPS[key](x0, p, float(dt))
+    stop = np.asarray(stop, dtype=float)
+    if stop.shape != (len(STOP),) or np.isnan(stop).any():
+        raise ValueError(f"`stop` must be {len(STOP)} numbers ({', '.join(STOP)}), got {stop!r}.")
+    x_end, summary = _MAPS[key](x0, p, float(dt), stop)
     return np.asarray(x_end, dtype=float), np.asarray(summary, dtype=float)
 
 
-def dask_batch(library, scene_data, source, cache_dir, x0, p, dt):
+def dask_batch(library, scene_data, source, cache_dir, x0, p, dt, stop=NO_STOP):
     """A Dask task: one batch; builds the library on the worker if it cannot see it."""
     if not Path(library).is_file():
         if scene_data is None:
@@ -190,4 +197,4 @@ def dask_batch(library, scene_data, source, cache_dir, x0, p, dt):
                                     "load the study from a file (docs/envelope.md).")
         scene = scene_from_dict(scene_data, source)
         library = build_envelope(scene, cache_dir)
-    return run_batch(library, x0, p, dt, threads=1)
+    return run_batch(library, x0, p, dt, threads=1, stop=stop)

@@ -8,10 +8,12 @@ the step's physics, compile, or classify.
 """
 from __future__ import annotations
 
+import math
+
 import casadi as ca
 import numpy as np
 
-from symcushion.layout.vectors import state_layout
+from symcushion.layout.vectors import output_layout, state_layout
 from symcushion.layout.params import default_p, param_layout
 from symcushion.scheme.quaternion import quat_from_axis_angle_np, quat_mul_np, quat_to_rot_np
 from symcushion.scheme.measures import measures_function
@@ -19,7 +21,7 @@ from symcushion.model.scene_data import Scene
 from symcushion.scheme.touchdown import StepModel
 from symcushion.envelope.study import EnvelopeStudy
 
-__all__ = ["SUMMARY", "DECEL_FILTER_TIME", "initial_states", "reach", "apply_design", "envelope_function", "case_params"]
+__all__ = ["SUMMARY", "STOP", "NO_STOP", "stop_vector", "study_stop", "DECEL_FILTER_TIME", "initial_states", "reach", "apply_design", "envelope_function", "case_params"]
 
 #: Running extrema per case, the rows of ``envelope_case``'s ``summary``:
 #: max |δ_S| over legs with an axial element (m), max |β| and max |γ − γ₀|
@@ -27,11 +29,14 @@ __all__ = ["SUMMARY", "DECEL_FILTER_TIME", "initial_states", "reach", "apply_des
 #: reads) low-pass filtered with :data:`DECEL_FILTER_TIME` and raw, max of
 #: 1 − cos(tilt) against the true vertical, 1 once a foot has touched, the time of the first contact (s, −1 if none), max upward speed
 #: after the first contact (m/s, ≥ 0), time with no foot on the ground after
-#: the first contact (s), lowest height of the centre of mass above the ground (m).
+#: the first contact (s), lowest height of the centre of mass above the ground (m),
+#: the time the case ran until its class was decided (s; the duration if never).
 SUMMARY = ("max_stroke", "max_beta", "max_gamma", "peak_decel", "peak_decel_raw",
            "max_one_minus_cos_tilt", "touched", "first_contact_time", "rebound_speed",
-           "airborne_time", "min_height")
+           "airborne_time", "min_height", "end_time")
 _S = {name: i for i, name in enumerate(SUMMARY)}
+#: The entries of ``envelope_case``'s input ``stop`` (:func:`stop_vector`).
+STOP = ("one_minus_cos_tilt", "rest_speed", "rest_time")
 #: Axis of the slope frame's ground normal: the ground is its plane z = 0, so the
 #: body's height above the ground is its z coordinate.
 _NORMAL_AXIS = 2
@@ -109,13 +114,19 @@ def reach(scene: Scene) -> float:
 
 
 def envelope_function(model: StepModel, steps: int | None = None) -> ca.Function:
-    """``envelope_case(x0, p, dt) -> (x_end, summary)``: one whole touchdown.
+    """``envelope_case(x0, p, dt, stop) -> (x_end, summary)``: one whole touchdown.
 
     The scene's ``touchdown_step`` rolled out by ``fold``, with the case's
     gravity (slope frame) and μ in its parameter vector ``p``. The running
     extrema of :data:`SUMMARY`, taken from ``touchdown_measures``
     (:mod:`symcushion.scheme.measures`), are carried as extra states, and ``fold``
-    keeps only the final state, so one case returns nx + 11 numbers.
+    keeps only the final state, so one case returns nx + len(SUMMARY) numbers.
+
+    A case stops stepping once its class is decided (:data:`STOP`): from then on
+    each step of the fold is a branch that copies the state, so a decided case
+    costs nothing more. ``stop`` = (1 − cos of the tilt at which it stops, the
+    rest speed and the rest time of :func:`stop_vector`); ``NO_STOP`` runs every
+    case for the whole duration.
 
     Parameters
     ----------
@@ -127,12 +138,48 @@ def envelope_function(model: StepModel, steps: int | None = None) -> ca.Function
     scene = model.scene
     steps = scene.steps if steps is None else int(steps)
     nx, ns = model.nx, len(SUMMARY)
+    step = _envelope_step(model, reach(scene))
+    x0 = ca.MX.sym("x0", nx)
+    pm = ca.MX.sym("p", model.np)
+    hm = ca.MX.sym("dt")
+    stop = ca.MX.sym("stop", len(STOP))
+    s0 = [0.0] * ns
+    xl = state_layout(model.n_legs)
+    s0[_S["min_height"]] = xl.get(x0, "position")[_NORMAL_AXIS]
+    xs = ca.MX.sym("xs", step.size1_in(0))
+    decided = ca.logic_or(xs[nx + _S["max_one_minus_cos_tilt"]] > stop[0],
+                          xs[-1] >= stop[2])
+    # short-circuit: a decided case's step is a copy, not a step whose result is dropped
+    xs1 = ca.if_else(decided, xs, step(xs, pm, hm, stop[1]), True)
+    held = ca.Function("envelope_held_step", [xs, pm, hm, stop], [xs1],
+                       ["xs", "p", "dt", "stop"], ["xs_next"])
+    xs_end = held.fold(steps)(ca.vertcat(x0, *s0, ca.MX.zeros(4)), pm, hm, stop)
+    summary = xs_end[nx:nx + ns]
+    # cases that never touch: first contact time −1 instead of the whole duration
+    summary = ca.vertcat(summary[:_S["first_contact_time"]],
+                         ca.if_else(summary[_S["touched"]] > 0.5,
+                                    summary[_S["first_contact_time"]], -1),
+                         summary[_S["first_contact_time"] + 1:])
+    return ca.Function("envelope_case", [x0, pm, hm, stop], [xs_end[:nx], summary],
+                       ["x0", "p", "dt", "stop"], ["x_end", "summary"])
+
+
+def _envelope_step(model: StepModel, reach_m: float) -> ca.Function:
+    """``envelope_step(xs, p, dt, rest_speed) -> xs_next``: one step of a case.
+
+    ``xs`` is the state, the running extrema of :data:`SUMMARY`, the low-pass
+    filtered specific force (3) and the time the case has been at rest: its
+    body's motion |v| + |ω|·reach below ``rest_speed`` on every step since."""
+    scene = model.scene
+    nx, ns = model.nx, len(SUMMARY)
     xl = state_layout(model.n_legs)
     x = ca.SX.sym("x", nx)
     s = ca.SX.sym("s", ns)
     a_f = ca.SX.sym("a_filtered", 3)                    # low-pass filtered specific force
+    rest = ca.SX.sym("rest_time")
     p = ca.SX.sym("p", model.np)
     h = ca.SX.sym("dt")
+    rest_speed = ca.SX.sym("rest_speed")
 
     x1, y = model.step(x, p, h)
     m = measures_function(scene).call(dict(x=x1, y=y, p=p))
@@ -155,28 +202,61 @@ def envelope_function(model: StepModel, steps: int | None = None) -> ca.Function
     rebound = ca.if_else(touched > 0.5, ca.fmax(s[_S["rebound_speed"]], m["upward_speed"]),
                          s[_S["rebound_speed"]])
     height = xl.get(x1, "position")[_NORMAL_AXIS]
+    motion = ca.norm_2(xl.get(x1, "velocity")) + ca.norm_2(xl.get(x1, "angular_velocity")) * reach_m
+    # at rest: slower than rest_speed, no foot slipping (a creeping foot is not at rest,
+    # however slowly it slides) and standing on at least three feet (on two a lander
+    # slows to nothing at the top of a rock about them, and then falls either way)
+    modes = output_layout(model.n_legs).legs(y, "mode")
+    slipping = ca.mmax(ca.vertcat(*[mode == 2 for mode in modes])) if modes else 0
+    standing = ca.sum1(m["contact"]) >= min(3, model.n_legs) - 0.5 if model.n_legs else 0
+    still = ca.logic_and(ca.logic_and(standing, motion < rest_speed), slipping < 0.5)
+    rest1 = ca.if_else(still, rest + h, 0)
     s1 = ca.vertcat(ca.fmax(s[_S["max_stroke"]], stroke), ca.fmax(s[_S["max_beta"]], beta),
                     ca.fmax(s[_S["max_gamma"]], gamma),
                     ca.fmax(s[_S["peak_decel"]], ca.norm_2(a_f1)),
                     ca.fmax(s[_S["peak_decel_raw"]], ca.norm_2(specific_force)),
                     ca.fmax(s[_S["max_one_minus_cos_tilt"]], m["one_minus_cos_tilt"]), touched,
-                    first_time, rebound, airborne, ca.fmin(s[_S["min_height"]], height))
-    x0 = ca.MX.sym("x0", nx)
-    pm = ca.MX.sym("p", model.np)
-    hm = ca.MX.sym("dt")
-    s0 = ca.vertcat(ca.MX.zeros(_S["min_height"]), xl.get(x0, "position")[_NORMAL_AXIS],
-                    ca.MX.zeros(3))
-    xs, xs1 = ca.vertcat(x, s, a_f), ca.vertcat(x1, s1, a_f1)
-    step = ca.Function("envelope_step", [xs, p, h], [xs1], ["xs", "p", "dt"], ["xs_next"])
-    xs_end = step.fold(steps)(ca.vertcat(x0, s0), pm, hm)
-    summary = xs_end[nx:nx + ns]
-    # cases that never touch: first contact time −1 instead of the whole duration
-    summary = ca.vertcat(summary[:_S["first_contact_time"]],
-                         ca.if_else(summary[_S["touched"]] > 0.5,
-                                    summary[_S["first_contact_time"]], -1),
-                         summary[_S["first_contact_time"] + 1:])
-    return ca.Function("envelope_case", [x0, pm, hm], [xs_end[:nx], summary],
-                       ["x0", "p", "dt"], ["x_end", "summary"])
+                    first_time, rebound, airborne, ca.fmin(s[_S["min_height"]], height),
+                    s[_S["end_time"]] + h)
+    xs, xs1 = ca.vertcat(x, s, a_f, rest), ca.vertcat(x1, s1, a_f1, rest1)
+    return ca.Function("envelope_step", [xs, p, h, rest_speed], [xs1],
+                       ["xs", "p", "dt", "rest_speed"], ["xs_next"])
+
+
+def stop_vector(tilt_deg: float | None, rest_speed: float | None, rest_time: float | None):
+    """``stop`` of ``envelope_case``: a case stops once its tilt passes ``tilt_deg``
+    (tip-over outranks every other class, so its class cannot change) or once it
+    has been at rest, moving slower than ``rest_speed``, for ``rest_time`` (s).
+    None leaves that stop out."""
+    one_minus_cos = math.inf if tilt_deg is None else 1 - math.cos(math.radians(tilt_deg))
+    if rest_speed is None or rest_time is None:
+        rest_speed, rest_time = 0.0, math.inf
+    return np.array([one_minus_cos, float(rest_speed), float(rest_time)])
+
+
+#: ``stop`` that runs every case for the whole duration.
+NO_STOP = stop_vector(None, None, None)
+#: A case is at rest once it has moved slower than this share of
+#: ``limits.rest_speed`` (on at least three feet, none slipping) for
+#: :data:`STOP_REST_TIME`: well inside the at-rest check, so the check at the
+#: end of the duration would pass too.
+STOP_REST_SHARE = 0.4
+#: Rest speed of the stop when the study has no at-rest check (m/s).
+STOP_REST_SPEED = 0.02
+#: Time a case must stay at rest before it stops (s): 50 steps at 1 ms.
+STOP_REST_TIME = 0.05
+
+
+def study_stop(study: EnvelopeStudy) -> np.ndarray:
+    """``stop`` of a study's cases (:func:`stop_vector`): at its tip-over limit, and
+    at rest (:data:`STOP_REST_SHARE`, :data:`STOP_REST_TIME`); :data:`NO_STOP`
+    when ``study.stop`` is False. Why these keep every class: docs/envelope.md,
+    "Stopping decided cases"."""
+    if not study.stop:
+        return NO_STOP
+    rest = study.limits.rest_speed
+    rest = STOP_REST_SPEED if rest is None else STOP_REST_SHARE * rest
+    return stop_vector(study.limits.tilt_deg, rest, STOP_REST_TIME)
 
 
 def apply_design(scene: Scene, p: np.ndarray, design: dict | None) -> np.ndarray:

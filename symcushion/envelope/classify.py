@@ -56,7 +56,7 @@ def classify(summary: np.ndarray, x_end: np.ndarray, gravity: np.ndarray, x0: np
         "max_tilt_deg": np.degrees(np.arccos(np.clip(1 - S["max_one_minus_cos_tilt"], -1, 1))),
         "final_tilt_deg": final_tilt, "rebound_speed": S["rebound_speed"],
         "airborne_time": S["airborne_time"], "first_contact_time": S["first_contact_time"],
-        "min_height": S["min_height"],
+        "min_height": S["min_height"], "end_time": S["end_time"],
         "final_speed": np.linalg.norm(xl.get(x_end, "velocity"), axis=0),
         "final_rate": np.linalg.norm(xl.get(x_end, "angular_velocity"), axis=0),
         # along the ground: the slope frame's x and y

@@ -23,7 +23,8 @@ from symcushion.run.matlab import write_table_mat
 from symcushion.run.output_files import atomic_write_text, replacing
 from symcushion.model.scene_data import Scene
 from symcushion.envelope.build import dask_batch, safe_file_name, build_envelope, DEFAULT_CACHE, run_batch
-from symcushion.envelope.cases import apply_design, case_params, initial_states, reach, SUMMARY
+from symcushion.envelope.cases import (apply_design, case_params, initial_states, reach,
+    study_stop, SUMMARY)
 from symcushion.envelope.classify import classify
 from symcushion.envelope.plots import plot_envelope
 from symcushion.envelope.statistics import EnvelopeResult
@@ -127,9 +128,9 @@ def _scene_data(study: EnvelopeStudy, friction: bool, mu: np.ndarray) -> dict | 
     return raw
 
 
-def _fingerprint(x0, p: dict, tasks: list, libraries: dict, dt: float) -> str:
+def _fingerprint(x0, p: dict, tasks: list, libraries: dict, dt: float, stop) -> str:
     """What the batches' results depend on: every case's initial state and
-    parameters, the grouping into batches, Δt and the compiled libraries (their
+    parameters, the grouping into batches, Δt, when cases stop and the compiled libraries (their
     folder names carry the fingerprint of the generated source)."""
     digest = hashlib.sha256()
     digest.update(np.ascontiguousarray(x0, dtype=float).tobytes())
@@ -139,6 +140,7 @@ def _fingerprint(x0, p: dict, tasks: list, libraries: dict, dt: float) -> str:
     for friction, idx in tasks:
         digest.update(bytes([friction]) + np.asarray(idx, dtype=np.int64).tobytes())
     digest.update(repr(float(dt)).encode())
+    digest.update(np.asarray(stop, dtype=float).tobytes())
     return digest.hexdigest()
 
 
@@ -260,7 +262,8 @@ def run_envelope(study: EnvelopeStudy, out_dir=None, *, threads: int | None = No
         raise ValueError("`resume` continues a study from the batches in its `out_dir`; give "
                          "`out_dir`.")
     batches = None if out_dir is None else _Batches(
-        out_dir, _fingerprint(x0, p, tasks, libraries, scene.dt), len(tasks), resume)
+        out_dir, _fingerprint(x0, p, tasks, libraries, scene.dt, study_stop(study)), len(tasks),
+        resume)
     finished = {} if batches is None else batches.load(tasks)
     x_end = np.zeros_like(x0)
     summary = np.zeros((len(SUMMARY), study.n))
@@ -285,7 +288,7 @@ def run_envelope(study: EnvelopeStudy, out_dir=None, *, threads: int | None = No
         for k in todo:
             friction, idx = tasks[k]
             done(k, *run_batch(libraries[friction], x0[:, idx], p[friction][:, idx], scene.dt,
-                               threads))
+                               threads, study_stop(study)))
         info = {"threads": threads}
     else:
         # run_seconds leaves out the cluster's start (reported as startup_seconds)
@@ -304,7 +307,9 @@ def run_envelope(study: EnvelopeStudy, out_dir=None, *, threads: int | None = No
                "classify_seconds": round(classify_seconds, 3),
                "cases_per_second": round((study.n - info.get("resumed_cases", 0))
                                          / max(run_seconds, 1e-9), 1),
-               "steps_per_case": scene.steps, "dt": scene.dt}
+               "steps_per_case": scene.steps, "dt": scene.dt,
+               # a case stops once its class is decided (study_stop): the steps it ran
+               "mean_steps_run": round(float(np.mean(columns["end_time"])) / scene.dt, 1)}
     result = EnvelopeResult(study, conditions, columns, timings)
     if out_dir is not None:
         write_result(result, out_dir, plots=plots)
@@ -350,7 +355,8 @@ def evaluate(study: EnvelopeStudy, conditions: dict, *, threads: int = 1, cache_
     summary = np.zeros((len(SUMMARY), n))
     for friction, idx in _tasks(full, study.batch):
         x_end[:, idx], summary[:, idx] = run_batch(libraries[friction], x0[:, idx],
-                                                   p[friction][:, idx], study.scene.dt, threads)
+                                                   p[friction][:, idx], study.scene.dt, threads,
+                                                   study_stop(study))
     return classify(summary, x_end, gravity, x0, study.limits, len(study.scene.legs),
                     reach(study.scene))
 
@@ -380,6 +386,7 @@ def _run_dask(study, tasks, todo, libraries, x0, mu, p, done, bar, scheduler,
             fut = client.submit(dask_batch, str(Path(libraries[friction]).resolve()),
                                 _scene_data(study, friction, mu), study.source, cache,
                                 x0[:, idx], p[friction][:, idx], study.scene.dt,
+                                study_stop(study),
                                 key=f"envelope-{study.name}-{study.seed}-{k}-{os.getpid()}-"
                                     f"{time.monotonic_ns()}")
             futures[fut] = k

@@ -188,6 +188,11 @@ class EnvelopeStudy:
         Lowest foot above the ground at t = 0 (m).
     batch : int
         Cases per batch.
+    stop : bool
+        Stop each case once its class is decided: tipped over, or at rest
+        (:func:`~symcushion.envelope.cases.study_stop`); False runs every case
+        for the whole duration. Classes are the same either way; the measures
+        of a stopped case are those up to its stop (``end_time``).
     source : str
     scene_data : dict, optional
         The scene tables as read from the file, for Dask workers that build
@@ -203,6 +208,7 @@ class EnvelopeStudy:
     limits: Limits
     clearance: float = DEFAULT_CLEARANCE
     batch: int = DEFAULT_BATCH
+    stop: bool = True
     description: str = ""
     source: str = ""
     scene_data: dict | None = None
@@ -322,6 +328,11 @@ def study_from_dict(data: dict, source: str = "<dict>") -> EnvelopeStudy:
     name = st.get("name", Path(source).stem, kind="string")
     description = st.get("description", "", kind="string")
     clearance = st.get("clearance", DEFAULT_CLEARANCE, nonnegative=True)
+    stop = st.data.get("stop_decided", True)
+    st.used.add("stop_decided")
+    if not isinstance(stop, bool):
+        raise st.error("stop_decided", stop, "true (stop each case once its class is decided) "
+                       "or false (run every case for the whole duration)")
     st.finish()
     scene_raw = {k: data[k] for k in _SCENE_KEYS if k in data}
     top.used.update(_SCENE_KEYS)
@@ -378,7 +389,7 @@ def study_from_dict(data: dict, source: str = "<dict>") -> EnvelopeStudy:
     li.finish()
     top.finish()
     study = EnvelopeStudy(name=name, scene=scene, n=n, seed=seed, method=method, ranges=ranges,
-                          limits=limits, clearance=clearance, batch=batch,
+                          limits=limits, clearance=clearance, batch=batch, stop=stop,
                           description=description, source=source,
                           scene_data=json.loads(json.dumps(scene_raw)))
     dim = sum(r.random for r in ranges.values())
