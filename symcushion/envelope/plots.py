@@ -228,10 +228,16 @@ def _plot_distributions(plt, context: dict, files: dict):
               ("max_tilt_deg", "largest tilt from the vertical (deg)", lim.tilt_deg))
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.6))
     for ax, (key, label, limit) in zip(axes, panels):
-        values = col[key]
+        shown, note = np.ones(len(cls), bool), ""
+        if key == "max_tilt_deg" and st.stop and np.any(cls == "tip_over"):
+            # a case that tips over stops just past the limit: its tilt says no more
+            shown = cls != "tip_over"
+            note = f"\n({np.sum(~shown):,} tip-overs stopped at the limit, not drawn)"
+        values = col[key][shown]
         bins = np.linspace(values.min(), values.max(), 50) if np.ptp(values) > 0 else 10
-        ax.hist(values[stable], bins=bins, color=_COLOURS["stable"], label="stable")
-        ax.hist(values[~stable], bins=bins, color="#d62728", alpha=0.6, label="not stable")
+        ax.hist(values[stable[shown]], bins=bins, color=_COLOURS["stable"], label="stable")
+        ax.hist(values[~stable[shown]], bins=bins, color="#d62728", alpha=0.6,
+                label="not stable" + note)
         if limit is not None:
             ax.axvline(limit, color="k", ls="--", lw=1, label="limit")
         ax.set_xlabel(label)
