@@ -24,7 +24,7 @@ from symcushion.model.scene_data import Scene
 from symcushion.scheme.touchdown import build_model
 from symcushion.envelope.cases import envelope_function, NO_STOP, STOP, SUMMARY
 
-__all__ = ["DEFAULT_CACHE", "build_envelope", "run_batch"]
+__all__ = ["DEFAULT_CACHE", "batch_map", "build_envelope", "run_batch"]
 
 #: Default folder of the compiled case Functions, one sub-folder per source
 #: fingerprint (git-ignored: ``build/`` is in .gitignore).
@@ -147,6 +147,17 @@ def _case_function(library) -> ca.Function:
     return _LOADED[key]
 
 
+def batch_map(library, count: int, threads: int = 1) -> ca.Function:
+    """``map`` of a library's ``envelope_case`` over ``count`` cases on ``threads``
+    threads (serial for 1), made once per process."""
+    f = _case_function(library)
+    threads = max(1, min(int(threads), count))
+    key = (id(f), count, threads)
+    if key not in _MAPS:
+        _MAPS[key] = f.map(count, "thread", threads) if threads > 1 else f.map(count, "serial")
+    return _MAPS[key]
+
+
 def run_batch(library, x0, p, dt, threads: int = 1, stop=NO_STOP) -> tuple:
     """Run a batch of cases through a compiled ``envelope_case``.
 
@@ -177,14 +188,10 @@ def run_batch(library, x0, p, dt, threads: int = 1, stop=NO_STOP) -> tuple:
     if x0.shape[0] != f.size1_in(0) or p.shape != (f.size1_in(1), count):
         raise ValueError(f"`x0` must be ({f.size1_in(0)}, B) and `p` ({f.size1_in(1)}, B), got "
                          f"{x0.shape} and {p.shape}.")
-    threads = max(1, min(int(threads), count))
-    key = (id(f), count, threads)
-    if key not in _MAPS:
-        _MAPS[key] = f.map(count, "thread", threads) if threads > 1 else f.map(count, "serial")
     stop = np.asarray(stop, dtype=float)
     if stop.shape != (len(STOP),) or np.isnan(stop).any():
         raise ValueError(f"`stop` must be {len(STOP)} numbers ({', '.join(STOP)}), got {stop!r}.")
-    x_end, summary = _MAPS[key](x0, p, float(dt), stop)
+    x_end, summary = batch_map(library, count, threads)(x0, p, float(dt), stop)
     return np.asarray(x_end, dtype=float), np.asarray(summary, dtype=float)
 
 

@@ -15,6 +15,7 @@ import os
 import shutil
 import sys
 import time
+from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 
 import numpy as np
@@ -22,7 +23,8 @@ import numpy as np
 from symcushion.run.matlab import write_table_mat
 from symcushion.run.output_files import atomic_write_text, replacing
 from symcushion.model.scene_data import Scene
-from symcushion.envelope.build import dask_batch, safe_file_name, build_envelope, DEFAULT_CACHE, run_batch
+from symcushion.envelope.build import (batch_map, dask_batch, safe_file_name, build_envelope,
+    DEFAULT_CACHE, run_batch)
 from symcushion.envelope.cases import (apply_design, case_params, initial_states, reach,
     study_stop, SUMMARY)
 from symcushion.envelope.classify import classify
@@ -215,7 +217,7 @@ def run_envelope(study: EnvelopeStudy, out_dir=None, *, threads: int | None = No
         (:func:`plot_envelope`). While the study runs, each finished batch is
         kept in ``out_dir/batches`` (:data:`BATCH_DIR`), removed at the end.
     threads : int, optional
-        Threads of the local run (``map(batch, "thread", threads)``); default
+        Worker threads of the local run, each running whole batches; default
         every core (``os.cpu_count()``).
     dask : bool
         Run the batches as Dask tasks: on ``scheduler`` (an address such as
@@ -285,10 +287,7 @@ def run_envelope(study: EnvelopeStudy, out_dir=None, *, threads: int | None = No
     started = time.perf_counter()
     info = {}
     if not dask:
-        for k in todo:
-            friction, idx = tasks[k]
-            done(k, *run_batch(libraries[friction], x0[:, idx], p[friction][:, idx], scene.dt,
-                               threads, study_stop(study)))
+        _run_local(tasks, todo, libraries, x0, p, scene.dt, study_stop(study), threads, done)
         info = {"threads": threads}
     else:
         # run_seconds leaves out the cluster's start (reported as startup_seconds)
@@ -359,6 +358,32 @@ def evaluate(study: EnvelopeStudy, conditions: dict, *, threads: int = 1, cache_
                                                    study_stop(study))
     return classify(summary, x_end, gravity, x0, study.limits, len(study.scene.legs),
                     reach(study.scene))
+
+
+def _run_local(tasks, todo, libraries, x0, p, dt, stop, threads: int, done):
+    """The batches on ``threads`` worker threads, each batch serial on one of them.
+
+    A worker takes the next batch when it finishes one (CasADi releases the GIL
+    while compiled code runs), so cases that stop early leave no thread idle:
+    a ``map`` over one batch on several threads splits it into equal parts and
+    waits for the slowest. ``done`` runs in this thread, in the order batches
+    finish; an interrupt cancels the batches not started."""
+    if threads == 1:
+        for k in todo:
+            friction, idx = tasks[k]
+            done(k, *run_batch(libraries[friction], x0[:, idx], p[friction][:, idx], dt, 1, stop))
+        return
+    for k in todo:       # build each map once, here, before the threads use it
+        friction, idx = tasks[k]
+        batch_map(libraries[friction], len(idx), 1)
+    pool = ThreadPoolExecutor(max_workers=threads)
+    try:
+        futures = {pool.submit(run_batch, libraries[tasks[k][0]], x0[:, tasks[k][1]],
+                               p[tasks[k][0]][:, tasks[k][1]], dt, 1, stop): k for k in todo}
+        for fut in as_completed(futures):
+            done(futures[fut], *fut.result())
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _run_dask(study, tasks, todo, libraries, x0, mu, p, done, bar, scheduler,
