@@ -80,7 +80,9 @@ class LegInput:
     ``sets`` (3) and their mean rates over the previous step ``chords`` (3)
     (else None), with ``fns`` holding the leg's ``memory_functions`` too; then
     ``rest`` is the free foot at the end of the step and ``rest_start`` the
-    free foot at its start (a damped foot relaxes over the step). ``pad``: its
+    free foot at its start (a damped foot relaxes over the step), and ``free`` the
+    :class:`~symcushion.scheme.free_foot.FreeFoot` that evaluates ``rest`` only where a
+    step reads it (``rest`` is its value before the contact passes). ``pad``: its
     footpad radius a (m; a float, or the entry of ``p``), the foot being the pad's
     centre on the obstacle's surface offset by a (0.0 builds a point foot's step)."""
 
@@ -94,6 +96,7 @@ class LegInput:
     chords: ca.SX | None = None
     rest_start: ca.SX | None = None
     pad: ca.SX | float = 0.0
+    free: object | None = None
 
 
 class FeetStep(SplitAtSwitch):
@@ -146,7 +149,8 @@ class FeetStep(SplitAtSwitch):
         _, normal_w, _ = closest_obstacle(model.obstacles, r_s, pad)
         l = R_e.T @ (r_s - pos_e) - rho_s                      # §3: l_j, exact kinematics
         n_b = R_e.T @ normal_w
-        u0 = rho_s - leg.rest
+        # a leg with a gated free foot: u₀ = 0, a lift-off's δ = −u₀ set after each pass
+        u0 = rho_s - leg.rest if leg.free is None else ca.DM.zeros(3)
         v_rel = rate_of(l)
         if leg.sets is None:
             P0 = fns["strut_force"](rho_s, v_rel, p_leg)
@@ -154,7 +158,8 @@ class FeetStep(SplitAtSwitch):
         else:
             rate = self.damper_rate(leg, rho_s, span)
             P0, Dp = self.memory_linearisation(leg, rho_s, l, rate)
-        out = contact_step_call(scheme.method, P0, Dp, n_b, l, mu, u0, friction=friction)
+        out = self.lifted(leg, rho_s, contact_step_call(scheme.method, P0, Dp, n_b, l, mu, u0,
+                                                        friction=friction))
         if scheme.tangent_plane == "end" or leg.sets is not None:
             # second pass: the tangent plane at the predicted end point, shifted along
             # its normal so that a sticking foot keeps its world point r_s; on the memory
@@ -168,8 +173,8 @@ class FeetStep(SplitAtSwitch):
                 l = l + n_b * ca.dot(n_b, R_e.T @ (r_pred - r_s))
             if leg.sets is not None:
                 P0, Dp = self.memory_linearisation(leg, rho_s, out["delta"], rate)
-            out = contact_step_call(scheme.method, P0, Dp, n_b, l, mu, u0,
-                                    friction=friction)
+            out = self.lifted(leg, rho_s, contact_step_call(scheme.method, P0, Dp, n_b, l, mu,
+                                                            u0, friction=friction))
         if scheme.slip == "midpoint" and friction:
             # second-order slip direction (symcushion.contact.midpoint); μ = 0 has none.
             # The start force turns with the body into the frame of the end.
@@ -179,6 +184,10 @@ class FeetStep(SplitAtSwitch):
             else:
                 out = self.memory_midpoint(leg, P0, Dp, n_b, l, out, turn)
         return out, l, n_b, normal_w, v_rel
+
+    @staticmethod
+    def lifted(leg: LegInput, rho_s, out):
+        return out if leg.free is None else leg.free.lifted(rho_s, out)
 
     def memory_midpoint(self, leg: LegInput, P0, Dp, n_b, l, out, turn):
         """The midpoint slip rule (M1) of a leg on the memory law, its trial path
@@ -415,7 +424,8 @@ class FeetStep(SplitAtSwitch):
         obstacle where it stays in contact, else at rest; the normal there; the end
         force, turned onto that normal on a curved obstacle."""
         model, P = self.model, self.poses
-        rho1 = ca.if_else(stays, rho_last + out["delta"], leg.rest)
+        rest = leg.rest if leg.free is None else leg.free.value   # after the contact passes
+        rho1 = ca.if_else(stays, rho_last + out["delta"], rest)
         foot_w = P.pos1 + P.R1 @ rho1
         _, _, foot_proj = closest_obstacle(model.obstacles, foot_w, leg.pad)
         foot_w = ca.if_else(stays, foot_proj, foot_w)
