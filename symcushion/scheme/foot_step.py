@@ -137,12 +137,13 @@ class FeetStep(SplitAtSwitch):
         self.kin_mid = dict(R=quat_to_rot(quat_mid / ca.norm_2(quat_mid)), v=P.vel_h,
                             omega=P.omega_h)
 
-    def contact_from(self, leg: LegInput, rho_s, r_s, pos_e, R_e, rate_of, R_s, span=None):
+    def contact_from(self, leg: LegInput, rho_s, r_s, pos_e, R_e, rate_of, R_s, span=None,
+                     where=None):
         """The contact step of ``leg``'s foot from ``rho_s`` (body frame) at the world
         point ``r_s``, the body going from attitude ``R_s`` to the pose (``pos_e``,
         ``R_e``); ``rate_of(l)`` is the rate that selects the branches; ``span``: the
-        dampers' rate over a touchdown's part of the step (:meth:`damper_rate`).
-        Returns the step's outputs, l, n_b, the world normal and the rate."""
+        dampers' rate over a touchdown's part of the step (:meth:`damper_rate`); ``where``:
+        the passes run only where it is set (``contact_step_call``). Returns the step's outputs, l, n_b, the world normal and the rate."""
         model, scheme, mu, friction = self.model, self.scheme, self.mu, self.friction
         fns, p_leg = leg.fns, leg.p_leg
         pad = leg.pad
@@ -159,7 +160,7 @@ class FeetStep(SplitAtSwitch):
             rate = self.damper_rate(leg, rho_s, span)
             P0, Dp = self.memory_linearisation(leg, rho_s, l, rate)
         out = self.lifted(leg, rho_s, contact_step_call(scheme.method, P0, Dp, n_b, l, mu, u0,
-                                                        friction=friction))
+                                                        friction=friction, where=where))
         if scheme.tangent_plane == "end" or leg.sets is not None:
             # second pass: the tangent plane at the predicted end point, shifted along
             # its normal so that a sticking foot keeps its world point r_s; on the memory
@@ -174,7 +175,7 @@ class FeetStep(SplitAtSwitch):
             if leg.sets is not None:
                 P0, Dp = self.memory_linearisation(leg, rho_s, out["delta"], rate)
             out = self.lifted(leg, rho_s, contact_step_call(scheme.method, P0, Dp, n_b, l, mu,
-                                                            u0, friction=friction))
+                                                            u0, friction=friction, where=where))
         if scheme.slip == "midpoint" and friction:
             # second-order slip direction (symcushion.contact.midpoint); μ = 0 has none.
             # The start force turns with the body into the frame of the end.
@@ -460,8 +461,11 @@ class FeetStep(SplitAtSwitch):
                 v_rel = ca.if_else(flag, v_rel + (rate - ca.dot(e_S, v_rel)) * e_S, v_rel)
             return v_rel
 
-        out, l, n_b, normal_w, v_rel = self.contact_from(leg, rho_s, r_s, P.pos1, P.R1,
-                                                         chord_rate, P.R, span)
+        # on the memory law a foot that is not active (free, not touching down) reads
+        # nothing of its contact passes (it ends at its free foot, with no force)
+        out, l, n_b, normal_w, v_rel = self.contact_from(
+            leg, rho_s, r_s, P.pos1, P.R1, chord_rate, P.R, span,
+            where=active if leg.sets is not None else None)
         l_whole = l
         out, (l, n_b, normal_w, v_rel, rho_last), split = self.located_split(
             j, leg, (out, l, n_b, normal_w, v_rel), rho_s, r_s, in_contact, release, stored)
