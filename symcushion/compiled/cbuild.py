@@ -112,6 +112,26 @@ def with_clones(text: str) -> str:
     return _DEFINITION.sub(r"SYMCUSHION_CLONES static int \1(\2) {", text)
 
 
+#: CasADi's fmax and fmin helpers call the C library's (gcc inlines them only under
+#: -ffinite-math-only, which the guarded if_else cannot have): 300 calls in the
+#: envelope's step, 2 % of its time. On x86-64 glibc fmax(x, y) is maxsd, x > y ? x :
+#: y, with a NaN argument giving the other one; written out so that gcc inlines it,
+#: the same bits. Elsewhere (aarch64's fmaxnm orders -0 below +0) the library call.
+_LIBM_MINMAX = {
+    "  return fmax(x, y);": "  return y != y ? x : (x > y ? x : y);",
+    "  return fmin(x, y);": "  return y != y ? x : (x < y ? x : y);",
+}
+
+
+def with_inline_minmax(text: str) -> str:
+    """CasADi's C with ``casadi_fmax`` and ``casadi_fmin`` written out on x86-64 glibc,
+    where they give the C library's bits (:data:`_LIBM_MINMAX`)."""
+    for call, inline in _LIBM_MINMAX.items():
+        text = text.replace(call, "#if defined(__x86_64__) && defined(__GLIBC__)\n"
+                            f"{inline}\n#else\n{call}\n#endif")
+    return text
+
+
 #: Warnings requested on every compile; the build fails on none, the tests
 #: check that gcc prints nothing.
 WARNINGS = ("-Wall",)
@@ -251,6 +271,7 @@ def compile_cached(f, source_name: str, library_name: str, cache_dir: Path,
             cg.add(one)
         cg.generate(tmp + os.sep)
         source = (Path(tmp) / source_name).read_bytes()
+    source = with_inline_minmax(source.decode()).encode()
     if clones:
         source = with_clones(source.decode()).encode()
     flags = [*cflags, *WARNINGS]

@@ -232,7 +232,23 @@ def _build_call(method, friction):
                        {"never_inline": True})
 
 
-def contact_step_call(method, P0, Dp, n, l, mu, u0, *, friction=None):
+@functools.lru_cache(maxsize=None)
+def _build_gated_call(method, friction):
+    """The call of :func:`_build_call` run only where its input ``flag`` is set; elsewhere
+    its outputs are zeros (``contact`` 0), at the cost of a copy."""
+    call = _build_call(method, friction)
+    sym = [ca.MX.sym(name, call.sparsity_in(i)) for i, name in enumerate(INPUT_NAMES)]
+    skip = ca.Function(f"{call.name()}_skip", sym,
+                       [ca.MX.zeros(call.sparsity_out(i)) for i in range(call.n_out())],
+                       INPUT_NAMES, OUTPUT_NAMES, _FORWARD_AD)
+    switch = ca.Function.conditional(f"{call.name()}_gate", [skip], call, _FORWARD_AD)
+    flag = ca.MX.sym("flag")
+    return ca.Function(f"{call.name()}_where", [flag] + sym, switch(flag, *sym),
+                       ["flag"] + INPUT_NAMES, OUTPUT_NAMES,
+                       dict(_FORWARD_AD, never_inline=True))
+
+
+def contact_step_call(method, P0, Dp, n, l, mu, u0, *, friction=None, where=None):
     """The step of :func:`contact_step_expr` as a call node of one shared Function.
 
     Same arguments and returned dict as :func:`contact_step_expr`, but the
@@ -243,7 +259,10 @@ def contact_step_call(method, P0, Dp, n, l, mu, u0, *, friction=None):
     CasADi's derivative Functions of the call node. For ``'implicit'`` with
     friction the called Function evaluates the slip part only when the
     trial force does not stick (:func:`_build_conditional`); its values
-    equal the full step's to the bit, its Jacobian to round-off.
+    equal the full step's to the bit, its Jacobian to round-off. ``where``
+    (an SX flag, optional): the step runs only where it is set and returns
+    zeros (``contact`` 0) elsewhere, for a caller that reads none of its
+    outputs there (a foot that is nowhere near the obstacle).
     """
     check_method(method)
     if friction is None:
@@ -251,7 +270,10 @@ def contact_step_call(method, P0, Dp, n, l, mu, u0, *, friction=None):
     args = [as_sx(x, name, shape) for x, name, shape in
             ((P0, "P0", (3, 1)), (Dp, "Dp", (3, 3)), (n, "n", (3, 1)), (l, "l", (3, 1)),
              (mu, "mu", (1, 1)), (u0, "u0", (3, 1)))]
-    out = _build_call(method, bool(friction))(*args)
+    if where is None:
+        out = _build_call(method, bool(friction))(*args)
+    else:
+        out = _build_gated_call(method, bool(friction))(ca.if_else(where, 1.0, 0.0), *args)
     return dict(zip(OUTPUT_NAMES, out))
 
 

@@ -80,7 +80,9 @@ class LegInput:
     ``sets`` (3) and their mean rates over the previous step ``chords`` (3)
     (else None), with ``fns`` holding the leg's ``memory_functions`` too; then
     ``rest`` is the free foot at the end of the step and ``rest_start`` the
-    free foot at its start (a damped foot relaxes over the step). ``pad``: its
+    free foot at its start (a damped foot relaxes over the step), and ``free`` the
+    :class:`~symcushion.scheme.free_foot.FreeFoot` that evaluates ``rest`` only where a
+    step reads it (``rest`` is its value before the contact passes). ``pad``: its
     footpad radius a (m; a float, or the entry of ``p``), the foot being the pad's
     centre on the obstacle's surface offset by a (0.0 builds a point foot's step)."""
 
@@ -94,6 +96,7 @@ class LegInput:
     chords: ca.SX | None = None
     rest_start: ca.SX | None = None
     pad: ca.SX | float = 0.0
+    free: object | None = None
 
 
 class FeetStep(SplitAtSwitch):
@@ -134,19 +137,21 @@ class FeetStep(SplitAtSwitch):
         self.kin_mid = dict(R=quat_to_rot(quat_mid / ca.norm_2(quat_mid)), v=P.vel_h,
                             omega=P.omega_h)
 
-    def contact_from(self, leg: LegInput, rho_s, r_s, pos_e, R_e, rate_of, R_s, span=None):
+    def contact_from(self, leg: LegInput, rho_s, r_s, pos_e, R_e, rate_of, R_s, span=None,
+                     where=None):
         """The contact step of ``leg``'s foot from ``rho_s`` (body frame) at the world
         point ``r_s``, the body going from attitude ``R_s`` to the pose (``pos_e``,
         ``R_e``); ``rate_of(l)`` is the rate that selects the branches; ``span``: the
-        dampers' rate over a touchdown's part of the step (:meth:`damper_rate`).
-        Returns the step's outputs, l, n_b, the world normal and the rate."""
+        dampers' rate over a touchdown's part of the step (:meth:`damper_rate`); ``where``:
+        the passes run only where it is set (``contact_step_call``). Returns the step's outputs, l, n_b, the world normal and the rate."""
         model, scheme, mu, friction = self.model, self.scheme, self.mu, self.friction
         fns, p_leg = leg.fns, leg.p_leg
         pad = leg.pad
         _, normal_w, _ = closest_obstacle(model.obstacles, r_s, pad)
         l = R_e.T @ (r_s - pos_e) - rho_s                      # §3: l_j, exact kinematics
         n_b = R_e.T @ normal_w
-        u0 = rho_s - leg.rest
+        # a leg with a gated free foot: u₀ = 0, a lift-off's δ = −u₀ set after each pass
+        u0 = rho_s - leg.rest if leg.free is None else ca.DM.zeros(3)
         v_rel = rate_of(l)
         if leg.sets is None:
             P0 = fns["strut_force"](rho_s, v_rel, p_leg)
@@ -154,7 +159,8 @@ class FeetStep(SplitAtSwitch):
         else:
             rate = self.damper_rate(leg, rho_s, span)
             P0, Dp = self.memory_linearisation(leg, rho_s, l, rate)
-        out = contact_step_call(scheme.method, P0, Dp, n_b, l, mu, u0, friction=friction)
+        out = self.lifted(leg, rho_s, contact_step_call(scheme.method, P0, Dp, n_b, l, mu, u0,
+                                                        friction=friction, where=where))
         if scheme.tangent_plane == "end" or leg.sets is not None:
             # second pass: the tangent plane at the predicted end point, shifted along
             # its normal so that a sticking foot keeps its world point r_s; on the memory
@@ -168,8 +174,8 @@ class FeetStep(SplitAtSwitch):
                 l = l + n_b * ca.dot(n_b, R_e.T @ (r_pred - r_s))
             if leg.sets is not None:
                 P0, Dp = self.memory_linearisation(leg, rho_s, out["delta"], rate)
-            out = contact_step_call(scheme.method, P0, Dp, n_b, l, mu, u0,
-                                    friction=friction)
+            out = self.lifted(leg, rho_s, contact_step_call(scheme.method, P0, Dp, n_b, l, mu,
+                                                            u0, friction=friction, where=where))
         if scheme.slip == "midpoint" and friction:
             # second-order slip direction (symcushion.contact.midpoint); μ = 0 has none.
             # The start force turns with the body into the frame of the end.
@@ -179,6 +185,10 @@ class FeetStep(SplitAtSwitch):
             else:
                 out = self.memory_midpoint(leg, P0, Dp, n_b, l, out, turn)
         return out, l, n_b, normal_w, v_rel
+
+    @staticmethod
+    def lifted(leg: LegInput, rho_s, out):
+        return out if leg.free is None else leg.free.lifted(rho_s, out)
 
     def memory_midpoint(self, leg: LegInput, P0, Dp, n_b, l, out, turn):
         """The midpoint slip rule (M1) of a leg on the memory law, its trial path
@@ -415,7 +425,8 @@ class FeetStep(SplitAtSwitch):
         obstacle where it stays in contact, else at rest; the normal there; the end
         force, turned onto that normal on a curved obstacle."""
         model, P = self.model, self.poses
-        rho1 = ca.if_else(stays, rho_last + out["delta"], leg.rest)
+        rest = leg.rest if leg.free is None else leg.free.value   # after the contact passes
+        rho1 = ca.if_else(stays, rho_last + out["delta"], rest)
         foot_w = P.pos1 + P.R1 @ rho1
         _, _, foot_proj = closest_obstacle(model.obstacles, foot_w, leg.pad)
         foot_w = ca.if_else(stays, foot_proj, foot_w)
@@ -450,8 +461,11 @@ class FeetStep(SplitAtSwitch):
                 v_rel = ca.if_else(flag, v_rel + (rate - ca.dot(e_S, v_rel)) * e_S, v_rel)
             return v_rel
 
-        out, l, n_b, normal_w, v_rel = self.contact_from(leg, rho_s, r_s, P.pos1, P.R1,
-                                                         chord_rate, P.R, span)
+        # on the memory law a foot that is not active (free, not touching down) reads
+        # nothing of its contact passes (it ends at its free foot, with no force)
+        out, l, n_b, normal_w, v_rel = self.contact_from(
+            leg, rho_s, r_s, P.pos1, P.R1, chord_rate, P.R, span,
+            where=active if leg.sets is not None else None)
         l_whole = l
         out, (l, n_b, normal_w, v_rel, rho_last), split = self.located_split(
             j, leg, (out, l, n_b, normal_w, v_rel), rho_s, r_s, in_contact, release, stored)

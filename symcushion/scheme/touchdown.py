@@ -93,6 +93,7 @@ import numpy as np
 
 from symcushion.scheme.body_step import kick_drift, legs_wrench
 from symcushion.scheme.foot_step import FeetStep, LegInput, StepPoses
+from symcushion.scheme.free_foot import FreeFoot
 from symcushion.layout.vectors import (BODY_OUT, BODY_STATE, LEG_OUT, LEG_STATE, MODES,
     ParamLayout, default_p)
 from symcushion.scheme.quaternion import quat_to_rot
@@ -248,9 +249,13 @@ def _leg_input(s: StepStart, j: int, rho0) -> LegInput:
                         pad=pad)
     sets = ca.vertcat(foot["stroke_set"], foot["element_set"])
     chords = ca.vertcat(foot["stroke_chord"], foot["element_chord"])
-    rest = fns["strut_free_foot"](sets, p_leg, fns["strut_deflections"](rho0, p_leg), chords, s.h)
-    return LegInput(strut=leg, fns=fns, p_leg=p_leg, rest=rest, foot=foot, rho0=rho0,
-                    sets=sets, chords=chords, rest_start=rho0, pad=pad)
+    # the free foot (A4), evaluated only in the steps that read it (symcushion.scheme.free_foot)
+    free = FreeFoot(f"touchdown_free_foot_{j}",
+                    fns["strut_free_foot"](sets, p_leg, fns["strut_deflections"](rho0, p_leg),
+                                           chords, s.h),
+                    ca.logic_not(foot["contact"] > 0.5))
+    return LegInput(strut=leg, fns=fns, p_leg=p_leg, rest=free.value, foot=foot, rho0=rho0,
+                    sets=sets, chords=chords, rest_start=rho0, pad=pad, free=free)
 
 
 def contact_pass(s: StepStart, rho0, ax0, drift, R1):
@@ -264,6 +269,8 @@ def contact_pass(s: StepStart, rho0, ax0, drift, R1):
     res, release_loading = [], {}
     for j in range(s.n_legs):
         leg_in = _leg_input(s, j, rho0[j])
+        if leg_in.free is not None:
+            feet_step.gated[f"touchdown_free_foot_{j}"] = leg_in.free.work
         if j in s.locked0:
             release_loading[j], lock = release_branch(s, j, ax0[j])
             res.append(feet_step.foot(j, leg_in, lock, stored=s.stored_loading[j]))
