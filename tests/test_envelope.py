@@ -494,3 +494,20 @@ def test_progress_on_a_terminal_is_the_bar_only(monkeypatch):
     bar = runner._Progress(200, True, "demo", stream=stream)
     bar.update(200)
     assert "200/200" in stream.getvalue() and "cases/s," not in stream.getvalue()
+
+
+def test_the_designed_lander_is_the_example_with_its_legs_within_the_footprint():
+    """studies/envelope_lander_designed.toml (docs/design-geometry.md, "Run 5") differs from
+    the example only in the legs the design set, and its feet rest within the design's
+    1.0-m footprint, farther out than the example's."""
+    example = ev.load_study(LANDER)
+    designed = ev.load_study(ROOT / "studies" / "envelope_lander_designed.toml")
+    assert designed.ranges == example.ranges and designed.limits == example.limits
+    assert (designed.n, designed.seed, designed.scene.dt, designed.scene.duration) == (
+        example.n, example.seed, example.scene.dt, example.scene.duration)
+    assert designed.scene.body.mass == example.scene.body.mass
+    assert np.array_equal(designed.scene.body.inertia, example.scene.body.inertia)
+    def footprint(scene):        # farthest foot at rest from the body axis (m)
+        return max(float(np.linalg.norm(leg.rest_foot[:2])) for leg in scene.legs)
+    assert footprint(example.scene) == pytest.approx(0.774, abs=1e-3)
+    assert footprint(example.scene) < footprint(designed.scene) <= 1.0
