@@ -3,7 +3,8 @@
 Owns the slope frame (initial states and gravity of each case), the case's
 step parameters ``p`` (μ and gravity per case) and ``envelope_case``: the
 scene's ``touchdown_step`` folded over the duration with the running extrema
-of :data:`SUMMARY` taken from ``touchdown_measures``. It must not re-derive
+of :data:`SUMMARY` taken from ``touchdown_measures``, and the rule that stops
+a case once its class is decided (:func:`study_stop`). It must not re-derive
 the step's physics, compile, or classify.
 """
 from __future__ import annotations
@@ -21,7 +22,8 @@ from symcushion.model.scene_data import Scene
 from symcushion.scheme.touchdown import StepModel
 from symcushion.envelope.study import EnvelopeStudy
 
-__all__ = ["SUMMARY", "STOP", "NO_STOP", "stop_vector", "study_stop", "DECEL_FILTER_TIME", "initial_states", "reach", "apply_design", "envelope_function", "case_params"]
+__all__ = ["SUMMARY", "STOP", "NO_STOP", "stop_vector", "study_stop", "DECEL_FILTER_TIME",
+           "initial_states", "reach", "apply_design", "envelope_function", "case_params"]
 
 #: Running extrema per case, the rows of ``envelope_case``'s ``summary``:
 #: max |δ_S| over legs with an axial element (m), max |β| and max |γ − γ₀|
