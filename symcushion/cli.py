@@ -39,11 +39,40 @@ def _cmd_reproduce(args):
 
 
 
+#: Tables that make a TOML file a study (envelope or design), not a scene.
+STUDY_TABLES = ("study", "sampling", "ranges", "limits", "robust", "design")
+
+
+def _scene_of(data: dict, source: str, case):
+    """The scene of ``simulate``: a scene file's, or touchdown ``case`` of a study file's."""
+    from symcushion.model.scene import scene_from_dict
+
+    if not any(k in data for k in STUDY_TABLES):
+        if case is not None:
+            raise ValueError(f"`--case` = {case} needs an envelope or design study file; "
+                             f"{source!r} is a scene (it has none of the tables "
+                             f"{list(STUDY_TABLES)}). Drop `--case`.")
+        return scene_from_dict(data, source)
+    if case is None:
+        raise ValueError(f"{source!r} is a study file: give `--case N` to simulate one of "
+                         "its touchdowns (the row `case` of the cases.csv that `symcushion "
+                         "envelope` writes).")
+    from symcushion.envelope.cases import case_scene
+
+    if "design" in data:
+        from symcushion.design.robust.study import robust_study_from_dict
+        study = robust_study_from_dict(data, source).envelope
+    else:
+        from symcushion.envelope.study import study_from_dict
+        study = study_from_dict(data, source)
+    return case_scene(study, case)
+
+
 def _scene_and_overrides(args):
     """The scene of a ``simulate`` command with its command-line overrides applied."""
-    from symcushion.model.scene import load_scene
+    from symcushion.model.scene import read_toml
 
-    scene = load_scene(args.scene)
+    scene = _scene_of(read_toml(args.scene), str(args.scene), getattr(args, "case", None))
     overrides = {k: v for k, v in (("duration", args.duration), ("dt", args.dt),
                                    ("mu", args.mu), ("method", args.method)) if v is not None}
     for key, value in overrides.items():
@@ -75,7 +104,7 @@ def _cmd_simulate(args):
           f"{scene.steps} steps of {scene.dt:g} s; step graph {size['instructions']} "
           "instructions" + (f" (+ {size['gated']} in the stroke lock's calls, run only in "
                             "the steps that need them)" if size["gated"] else ""), flush=True)
-    meta = {"scene": read_toml(args.scene), "scene_file": str(args.scene),
+    meta = {"scene": read_toml(args.scene), "scene_file": str(args.scene), "case": args.case,
             "overrides": overrides, "scene_summary": _summary(scene),
             "versions": versions(), "adaptive": args.adaptive or args.stability,
             "stability": args.stability, "rtol": args.rtol, "atol": args.atol}
@@ -218,7 +247,6 @@ def _figures(traj, scene, directory, frames):
 
 def _cmd_plot(args):
     from symcushion.run.driver import Trajectory
-    from symcushion.model.scene import scene_from_dict
 
     traj = Trajectory.load(args.result)
     meta = traj.info
@@ -229,7 +257,7 @@ def _cmd_plot(args):
         print(f"wrote {Path(args.result) / 'summary.png'}"
               + ("" if args.no_animation else " (no scene in run.json: no animation)"))
         return 0
-    scene = scene_from_dict(meta["scene"], source=str(Path(args.result) / "run.json"))
+    scene = _scene_of(meta["scene"], str(Path(args.result) / "run.json"), meta.get("case"))
     name = (meta.get("scene_summary") or {}).get("name", scene.name)
     scene = scene.with_(name=name, **(meta.get("overrides") or {}))
     _figures(traj, scene, Path(args.result), args.frames)
@@ -326,7 +354,7 @@ def _cmd_optimise(args):
 
 #: What ``design`` writes into its folder (``symcushion.design.robust.report``).
 DESIGN_FILES = ("result.json", "scenarios.csv", "before", "after", "before_after.png",
-                "curves.png")
+                "curves.png", "designed.toml", "geometry.json")
 
 
 def _cmd_design(args):

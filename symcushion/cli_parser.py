@@ -55,9 +55,13 @@ def build_parser(commands: dict) -> argparse.ArgumentParser:
                        "trajectory.csv (columns named owner_quantity_axis_unit), "
                        "trajectory.npz, trajectory.mat, run.json (scene, versions, events, warnings), "
                        "summary.png and animation.gif.")
-    p.add_argument("scene", type=Path, help="scene TOML file (docs/scenes.md)")
+    p.add_argument("scene", type=Path, help="scene TOML file (docs/scenes.md), or an envelope "
+                   "or design study file with --case")
     p.add_argument("--out", type=Path, default=Path("out"), metavar="DIR",
                    help="output folder; results go to DIR/<scene name> (default: %(default)s)")
+    p.add_argument("--case", type=int, default=None, metavar="N",
+                   help="with an envelope or design study file: simulate its touchdown N "
+                        "(the row `case` of its cases.csv), as the envelope ran it")
     p.add_argument("--duration", type=float, default=None, metavar="SECONDS",
                    help="simulated time in s (default: the scene's)")
     p.add_argument("--dt", type=float, default=None, metavar="SECONDS",

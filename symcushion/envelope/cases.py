@@ -18,12 +18,13 @@ from symcushion.layout.vectors import output_layout, state_layout
 from symcushion.layout.params import default_p, param_layout
 from symcushion.scheme.quaternion import quat_from_axis_angle_np, quat_mul_np, quat_to_rot_np
 from symcushion.scheme.measures import measures_function
-from symcushion.model.scene_data import Scene
+from symcushion.model.scene_data import Body, Scene
 from symcushion.scheme.touchdown import StepModel
-from symcushion.envelope.study import EnvelopeStudy
+from symcushion.envelope.study import EnvelopeStudy, sample_conditions
 
 __all__ = ["SUMMARY", "STOP", "NO_STOP", "stop_vector", "study_stop", "DECEL_FILTER_TIME",
-           "initial_states", "reach", "apply_design", "envelope_function", "case_params"]
+           "initial_states", "case_scene", "reach", "apply_design", "envelope_function",
+           "case_params"]
 
 #: Running extrema per case, the rows of ``envelope_case``'s ``summary``:
 #: max |δ_S| over legs with an axial element (m), max |β| and max |γ − γ₀|
@@ -107,6 +108,30 @@ def initial_states(study: EnvelopeStudy, conditions: dict) -> tuple:
         foot=[(pos + feet_rel[:, j]).T for j in legs], contact=[zeros for _ in legs],
         force_body=[np.zeros((3, n)) for _ in legs])
     return np.ascontiguousarray(x0), np.ascontiguousarray(gravity.T)
+
+
+def case_scene(study: EnvelopeStudy, case: int) -> Scene:
+    """Touchdown ``case`` of the study as a scene of its own, in the slope frame.
+
+    The body starts where :func:`initial_states` puts it, gravity is the
+    case's (tilted by its slope) and μ the case's, so that simulating the
+    scene runs the case the envelope ran (``symcushion simulate STUDY
+    --case N``). The scene is named ``<study>_case<N>``.
+    """
+    if isinstance(case, bool) or not isinstance(case, (int, np.integer)):
+        raise TypeError(f"`case` must be an integer, got {case!r}.")
+    if not 0 <= case < study.n:
+        raise ValueError(f"`case` = {case} is not a touchdown of {study.name!r}, which samples "
+                         f"{study.n:,} (cases 0 to {study.n - 1}); give one of those.")
+    conditions = {k: v[case:case + 1] for k, v in sample_conditions(study).items()}
+    x0, gravity = initial_states(study, conditions)
+    state = state_layout(len(study.scene.legs)).unpack(x0[:, 0])
+    b = study.scene.body
+    body = Body(mass=b.mass, inertia=b.inertia, position=state["position"],
+                attitude=state["attitude"], velocity=state["velocity"],
+                angular_velocity=state["angular_velocity"])
+    return study.scene.with_(body=body, gravity=gravity[:, 0], mu=float(conditions["mu"][0]),
+                             name=f"{study.name}_case{case}")
 
 
 def reach(scene: Scene) -> float:

@@ -7,8 +7,10 @@ timings), ``scenarios.csv`` (each scenario's conditions and value/limit of
 every check at the start and the optimum), the two verification envelopes
 (``before/`` and ``after/``, as ``symcushion envelope`` writes them),
 ``before_after.png`` (P(stable) per slope band and cases per class, side by
-side) and ``curves.png`` (the tuned characteristics before and after). Every
-file is written atomically. It must not run anything.
+side), ``curves.png`` (the tuned characteristics before and after) and
+``designed.toml`` (the study file with the optimum written in, an envelope
+study of its own: :mod:`symcushion.design.scene_file`). Every file is
+written atomically. It must not run anything.
 """
 from __future__ import annotations
 
@@ -22,8 +24,12 @@ from symcushion.envelope.study import VARIABLES
 from symcushion.run.output_files import (atomic_write_text, check_out_dir, jsonable, replacing,
     to_json, versions)
 from symcushion.design.robust.margins import CHECKS
+from symcushion.design.scene_file import write_designed_file
 
-__all__ = ["write_report", "plot_before_after", "plot_curves"]
+__all__ = ["write_report", "write_designed", "plot_before_after", "plot_curves", "DESIGNED_FILE"]
+
+#: The design's own study file in the result directory.
+DESIGNED_FILE = "designed.toml"
 
 
 def _envelope_block(result) -> dict:
@@ -68,7 +74,39 @@ def write_report(run: dict, out_dir) -> dict:
         files["before_after"] = plot_before_after(run["before"], run["after"],
                                                   out / "before_after.png", study.name)
     files["curves"] = plot_curves(problem, res.theta, out / "curves.png")
+    if study.data:
+        files["designed"] = write_designed(run, out / DESIGNED_FILE)
     return files
+
+
+def write_designed(run: dict, path) -> Path:
+    """The study file with the kept design written in: an envelope study named
+    ``<study>_designed`` that ``symcushion envelope`` runs as it stands."""
+    from symcushion.envelope.study import study_from_dict
+
+    study, res, problem = run["study"], run["result"], run["problem"]
+    data = dict(study.data)
+    table = dict(data.get("study", {}))
+    table["name"] = f"{study.name}_designed"
+    table["description"] = (f"{study.description} (designed)" if study.description
+                            else f"{study.name}, designed")
+    data["study"] = table
+    lines = [f"The design of {study.source}, written by `symcushion design`:",
+             f"Ipopt {res.return_status} after {res.iterations} iterations; risk "
+             f"({study.risk}) {res.objective_start:.4g} -> {res.objective:.4g} on "
+             f"{len(res.scenarios)} scenarios of {problem.horizon:g} s."]
+    after = run.get("after")
+    if after is not None:
+        ps = after.p_stable()
+        lines.append(f"P(stable) on {after.n:,} touchdowns (seed {study.envelope.seed}): "
+                     f"{ps['p']:.3f} [{ps['low']:.3f}, {ps['high']:.3f}], 95 % interval.")
+    lines += ["Design variables at the optimum: " + ", ".join(
+        f"{n} = {v:.6g}" for n, v in zip(res.var_names, res.theta)),
+              "", f"  symcushion envelope {DESIGNED_FILE} --out OUT",
+              f"  symcushion simulate {DESIGNED_FILE} --case N   (touchdown N of the study)"]
+    return write_designed_file(path, data, problem, res.theta,
+                               lambda d: study_from_dict(d, str(path)).scene,
+                               header="\n".join(lines))
 
 
 def _scenarios_csv(run) -> str:

@@ -81,6 +81,8 @@ class RobustStudy:
         the pool's + 1), stopping when P(stable) on them stops improving.
     risk : str
     ipopt : dict
+    data : dict
+        The study file as parsed: what :data:`DESIGNED_FILE` is written from.
     """
 
     name: str
@@ -106,10 +108,12 @@ class RobustStudy:
     ipopt: dict = field(default_factory=dict)
     description: str = ""
     source: str = "<dict>"
+    data: dict = field(default_factory=dict, repr=False)
 
 
 def robust_study_from_dict(data: dict, source: str = "<dict>") -> RobustStudy:
     """Build a :class:`RobustStudy` from the parsed contents of a study TOML file."""
+    original = copy.deepcopy(data)
     data = copy.deepcopy(data)
     design = data.pop("design", None)
     robust = data.pop("robust", {})
@@ -139,7 +143,7 @@ def robust_study_from_dict(data: dict, source: str = "<dict>") -> RobustStudy:
         rounds=rb.get("rounds", 1, kind="int"), check=rb.get("check", DEFAULT_CHECK, kind="int"),
         check_seed=rb.get("check_seed", None, kind="int"),
         ipopt=dict(rb.get("ipopt", {}, kind="any")), description=envelope.description,
-        source=source)
+        source=source, data=original)
     rb.finish()
     if out.check_seed is None:                  # the next seed that is nobody else's
         out.check_seed = next(k for k in range(out.pool_seed + 1, out.pool_seed + 3)
