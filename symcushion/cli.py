@@ -338,18 +338,34 @@ def _cmd_optimise(args):
     _set_max_iter(study.ipopt, args.max_iter)
     out = args.out if args.out is not None else Path("out") / f"{study.name}.json"
     check_output_file(out, "--out")                    # before building and solving
-    claim_output(Path(out).parent, [Path(out).name], overwrite=args.overwrite)
+    claim_output(Path(out).parent, [Path(out).name, Path(out).stem + "_designed.toml"],
+                 overwrite=args.overwrite)
     pb = study.problem
     print(f"{study.name}: {len(pb.scenarios)} scenario(s), {pb.n_variables} design variables, "
           f"{pb.lbg.size} constraints, objective {pb.objective_kind} (built in "
           f"{pb.build_seconds:.1f} s)", flush=True)
     result = study.solve(progress=True)
     result.save_json(out)
+    scene_file = _write_optimised_scene(study, result, out)
     print(result.message)
     if result.efficiency is not None:
         print(f"efficiency (ideal v²/2s + g over the achieved peak): {result.efficiency:.4f}")
-    print(f"wrote {out} ({result.timings['solve_seconds']:.1f} s)")
+    print(f"wrote {out} and {scene_file} ({result.timings['solve_seconds']:.1f} s)")
     return 0 if result.success and result.evaluation.feasible else 1
+
+
+def _write_optimised_scene(study, result, out) -> Path:
+    """``<out>_designed.toml``: the study's scene with the optimum written in."""
+    from symcushion.design.scene_file import write_designed_file
+    from symcushion.model.scene import scene_from_dict
+
+    path = Path(out).with_name(Path(out).stem + "_designed.toml")
+    data = dict(study.scene_data)
+    data["scene"] = dict(data.get("scene", {}), name=f"{study.name}_designed")
+    header = (f"The scene of {study.source} with the design of `symcushion optimise` written "
+              f"in:\n{result.message}\n\n  symcushion simulate {path.name} --out OUT")
+    return write_designed_file(path, data, study.problem, result.theta,
+                               lambda d: scene_from_dict(d, str(path)), header=header)
 
 
 #: What ``design`` writes into its folder (``symcushion.design.robust.report``).

@@ -10,7 +10,7 @@ from symcushion.cli import main
 from symcushion.model.obstacles import Plane
 from symcushion.design.optimise import (DesignProblem, DesignVariable, Limits, Scenario,
     load_study, study_from_dict)
-from symcushion.model.scene import Body, Scene, symmetric_legs
+from symcushion.model.scene import Body, Scene, load_scene, symmetric_legs
 
 ROOT = Path(__file__).resolve().parents[1]
 ABSORBER = ROOT / "studies" / "absorber_1d.toml"
@@ -183,6 +183,16 @@ def test_cli_optimise_writes_json(tmp_path, capsys):
     data = json.loads(out.read_text())
     assert data["return_status"] == "Maximum_Iterations_Exceeded"
     assert data["iterations"] == 3
+    # the scene with the last design written in, which simulate takes as it stands
+    scene = load_scene(tmp_path / "cli_designed.toml")
+    assert scene.name == "absorber_1d_designed"
+    curves = {el.name: el.curve for el in scene.legs[0].elements}
+    for name, value in data["design"].items():
+        element, param = name.split(".", 1)
+        curve = curves[element]
+        assert curve.param_values[curve.param_names.index(param)] == value, name
+    assert main(["simulate", str(tmp_path / "cli_designed.toml"), "--out", str(tmp_path),
+                 "--no-plots", "--no-estimate"]) == 0
 
 
 # ---------------------------------------------------------------------------

@@ -6,10 +6,11 @@ allowed), the placement of each scenario's body above the obstacle and
 """
 from __future__ import annotations
 
+import copy
 import dataclasses
 import math
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import casadi as ca
@@ -62,6 +63,7 @@ class Study:
     source: str = ""
     description: str = ""
     compiled: bool | None = None
+    scene_data: dict = field(default_factory=dict, repr=False)   # the scene's tables, as parsed
 
     def solve(self, progress=False) -> DesignResult:
         """Solve the design; ``compiled`` None (the default) compiles where gcc is found."""
@@ -180,7 +182,7 @@ def study_from_dict(data: dict, source: str = "<dict>", base_dir=".") -> Study:
     except (ValueError, TypeError) as exc:
         raise ValueError(f"{source}: {exc}") from None
     return Study(name=name, problem=problem, ipopt=ipopt, source=source, description=description,
-                 compiled=compiled)
+                 compiled=compiled, scene_data=copy.deepcopy(scene_raw))
 
 
 def read_design_table(dz) -> tuple:
