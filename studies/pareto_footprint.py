@@ -24,7 +24,7 @@ class); each point's design directory under ``--out``. A point whose
 ``verified.json`` exists is read back, not solved again, so an interrupted
 study resumes where it stopped.
 
-    python studies/pareto_footprint.py [--limits 0.7 0.8 0.9 1.0 1.1] [--out out/pareto_footprint]
+    python studies/pareto_footprint.py [--limits 0.7 0.75 0.8 0.9 1.0 1.1] [--out out/pareto_footprint]
 """
 from __future__ import annotations
 
@@ -47,7 +47,7 @@ HERE = Path(__file__).resolve().parent
 DESIGN = HERE / "design_geometry_memory.toml"
 EXAMPLE = HERE / "envelope_lander.toml"
 FIGURES = HERE.parent / "figures"
-LIMITS = (0.7, 0.8, 0.9, 1.0, 1.1)
+LIMITS = (0.7, 0.75, 0.8, 0.9, 1.0, 1.1)
 #: The geometry's box: wide enough that the footprint limit bounds the stance.
 BOX = {"hinge_radius": dict(lower=0.4, upper=1.1), "length": dict(lower=0.55, upper=1.0),
        "splay": dict(lower_deg=0.0, upper_deg=30.0)}
@@ -96,8 +96,8 @@ def solve_point(limit: float, out: Path, example: dict, cache, max_iter: int = M
     if done.is_file():
         return json.loads(done.read_text())
     started = time.perf_counter()
-    study = robust_study_from_dict(design_data(limit, max_iter),
-                                   f"{DESIGN.name} (R = {limit:g} m)")
+    # one source for every point: the pool's scene keeps its name, so its library is built once
+    study = robust_study_from_dict(design_data(limit, max_iter), str(DESIGN))
     run = run_robust_study(study, folder, verify=False, cache_dir=cache)
     res = run["result"]
     geo = res.geometry["end"]
@@ -106,7 +106,8 @@ def solve_point(limit: float, out: Path, example: dict, cache, max_iter: int = M
                risk_start=res.objective_start, risk=res.objective,
                design=dict(zip(res.var_names, map(float, res.theta))),
                foot_radius=max(leg["foot_radius"] for leg in geo.values()),
-               verified=verify(with_example_rules(designed, example, n), str(folder), cache),
+               verified=verify(with_example_rules(designed, example, n),
+                               str(folder / "designed.toml"), cache),
                seconds=None)
     row["seconds"] = time.perf_counter() - started
     atomic_write_text(done, json.dumps(row, indent=2) + "\n")
@@ -140,7 +141,7 @@ def plot(rows: list, reference: dict, path: Path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, (ax, bx) = plt.subplots(1, 2, figsize=(10.5, 4.2), constrained_layout=True)
+    fig, (ax, bx, cx) = plt.subplots(1, 3, figsize=(15, 4.2), constrained_layout=True)
     R = np.array([r["limit"] for r in rows])
     feet = np.array([r["foot_radius"] for r in rows])
     p = np.array([r["verified"]["p"] for r in rows])
@@ -174,10 +175,28 @@ def plot(rows: list, reference: dict, path: Path):
     extra = twin.get_legend_handles_labels()
     bx.legend(handles[0] + extra[0], handles[1] + extra[1], fontsize=8, loc="upper left")
     bx.set_title("the designed geometry")
+    _plot_failures(cx, rows, reference)
     with replacing(path) as tmp:
         fig.savefig(tmp, dpi=120, format="png")
     plt.close(fig)
     return path
+
+
+def _plot_failures(ax, rows: list, reference: dict):
+    """What still fails: cases per failure class, the example first."""
+    labels = ["example"] + [f"{r['limit']:g}" for r in rows]
+    counts = [reference["verified"]["counts"]] + [r["verified"]["counts"] for r in rows]
+    bottom = np.zeros(len(labels))
+    for k, c in enumerate(c for c in CLASSES if c != "stable"):
+        n = np.array([cnt.get(c, 0) for cnt in counts], dtype=float)
+        if n.any():
+            ax.bar(labels, n, bottom=bottom, label=c.replace("_", "-"), color=f"C{k}")
+            bottom += n
+    ax.set_xlabel("footprint limit R (m)")
+    ax.set_ylabel("failed touchdowns of 10,000")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3, axis="y")
+    ax.set_title("what still fails")
 
 
 def main(argv=None):
