@@ -197,16 +197,14 @@ class FeetStep(SplitAtSwitch):
         The rule weighs the slip direction between the force at the start of the
         slip and the end force, and takes the start from its trial path P₀ + α D_p l
         at α = 0. On the memory law P₀ is the offset of the law linearised about the
-        end foot with the dampers' end rate (A3): it is not the start force, and
-        differs from it by the dampers' c(ẋ₁ − ẋ₀), O(1) in the step; a sliding
-        damped foot then slips along an O(1)-wrong mean direction, first order over
-        a slide. A foot in contact at the start has its stored force F₀: its path
-        runs from F₀ to the backward-Euler step's trial force P_t = P₀ + D_p l,
-        F₀ + α(P_t − F₀), so the trial end force and the step's outputs are kept.
-        The path is given by its forces, not by a displacement D_p⁻¹(P_t − F₀):
-        on a flat stretch of the spring-back the element carries a constant force,
-        D_p has no axial stiffness, and its inverse gave the derivatives round-off
-        times cond(D_p)² (docs/design-geometry.md, "A wrong derivative at the start").
+        end foot with the dampers' end rate (A3), not the start force: they differ by
+        the dampers' c(ẋ₁ − ẋ₀), and a sliding damped foot slipped along an
+        O(1)-wrong mean direction. A foot in contact at the start has its stored
+        force F₀: its path is F₀ + α(P_t − F₀), P_t = P₀ + D_p l the backward-Euler
+        trial force, so that step's outputs are kept. Given by its forces, the path
+        needs no D_p⁻¹, which on a flat stretch of the spring-back (constant force,
+        no axial stiffness) turned round-off into the step's values and derivatives
+        (docs/design-geometry.md, "A wrong derivative at the start").
         """
         F0 = leg.foot["force_body"]
         in_contact = leg.foot["contact"] > 0.5
