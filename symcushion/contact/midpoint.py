@@ -44,9 +44,11 @@ turn, or the rule alone).
 
 It takes the backward-Euler step's outputs as the start of its Newton
 iteration on the direction angle and falls back to them where the rule has
-no solution, and keeps stick and lift-off as that step decides them. It
-must not change the backward-Euler step, validate user input, or know
-about bodies and time steps (the caller passes l and the turn).
+no solution, and keeps stick and lift-off as that step decides them. A
+caller whose slip starts elsewhere than P₀ (the memory law's stored force)
+gives the trial path by its forces, start and end, so that D_p is never
+inverted. It must not change the backward-Euler step, validate user input,
+or know about bodies and time steps (the caller passes l and the turn).
 """
 from __future__ import annotations
 
