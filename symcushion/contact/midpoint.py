@@ -44,9 +44,11 @@ turn, or the rule alone).
 
 It takes the backward-Euler step's outputs as the start of its Newton
 iteration on the direction angle and falls back to them where the rule has
-no solution, and keeps stick and lift-off as that step decides them. It
-must not change the backward-Euler step, validate user input, or know
-about bodies and time steps (the caller passes l and the turn).
+no solution, and keeps stick and lift-off as that step decides them. A
+caller whose slip starts elsewhere than P₀ (the memory law's stored force)
+gives the trial path by its forces, start and end, so that D_p is never
+inverted. It must not change the backward-Euler step, validate user input,
+or know about bodies and time steps (the caller passes l and the turn).
 """
 from __future__ import annotations
 
@@ -145,7 +147,7 @@ def _end_force(P_t, Dp, n, mu, d):
     return gamma, P, ca.logic_and(ok, ca.logic_and(gamma >= 0, ca.dot(n, P) > 0))
 
 
-def midpoint_slip(P0, Dp, n, l, mu, be, turn=None):
+def midpoint_slip(P0, Dp, n, l, mu, be, turn=None, path=None):
     """The slip of the fitted midpoint rule (M1), from a backward-Euler step's outputs.
 
     Parameters
@@ -167,6 +169,11 @@ def midpoint_slip(P0, Dp, n, l, mu, be, turn=None):
         T − I, T = R₁ᵀR₀ the rotation from the body frame of the start of the
         step to that of its end, in which ``n`` and ``l`` are given. Default
         zero.
+    path : tuple of casadi.SX, optional
+        (start, Dl): the elastic trial path start + α·Dl, α ∈ [0, 1], that ends at
+        the trial force P₀ + D_p l, both (3, 1), N; default (P₀, D_p l). (M1) reads
+        the slip's start on it. A path given by its forces needs no D_p⁻¹: D_p may
+        be singular (a leg on a flat spring-back has no axial stiffness).
 
     Returns
     -------
@@ -177,8 +184,8 @@ def midpoint_slip(P0, Dp, n, l, mu, be, turn=None):
     """
     P_t, _, _, t1, _ = stick_trial(P0, Dp, n, l, mu)  # (1.3) with delta = l
     t2 = ca.cross(n, t1)
-    Dl = ca.mtimes(Dp, l)
-    P_c, alpha = _crossing(P0, Dl, n, mu)
+    start, Dl = (P0, ca.mtimes(Dp, l)) if path is None else path
+    P_c, alpha = _crossing(start, Dl, n, mu)
     N_c = ca.dot(n, P_c)
     z = safe_div((1.0 - alpha) * ca.norm_2(_tangential(Dl, n)), mu * N_c)
     z = ca.if_else(mu * N_c > 0, at_most(at_least(z, 0.0), Z_MAX), Z_MAX)
@@ -213,27 +220,39 @@ def midpoint_slip(P0, Dp, n, l, mu, be, turn=None):
 
 
 #: Inputs: the contact step's own, its backward-Euler outputs (suffix _be), then the
-#: body's turn over the step (T − I; zero, its default, for no turn).
+#: body's turn over the step (T − I; zero, its default, for no turn); with a given
+#: trial path (``path`` of :func:`midpoint_slip`), its start and force increment.
 _INPUTS = ("P0", "Dp", "n", "l", "mu", "delta_be", "P_be", "k_be", "contact_be", "turn")
+_PATH_INPUTS = ("start", "Dl")
 _OUTPUTS = ("delta", "P", "k", "contact")
 
 
 _SHAPES = dict(P0=(3, 1), Dp=(3, 3), n=(3, 1), l=(3, 1), mu=(1, 1), delta_be=(3, 1),
-               P_be=(3, 1), k_be=(3, 1), contact_be=(1, 1), turn=(3, 3))
+               P_be=(3, 1), k_be=(3, 1), contact_be=(1, 1), turn=(3, 3), start=(3, 1),
+               Dl=(3, 1))
+
+
+def _inputs(with_path: bool) -> tuple:
+    return _INPUTS + (_PATH_INPUTS if with_path else ())
 
 
 @functools.lru_cache(maxsize=None)
-def _build():
-    """The SX Function ``contact_slip_midpoint`` of :func:`midpoint_slip`."""
-    sym = {name: ca.SX.sym(name, *_SHAPES[name]) for name in _INPUTS}
+def _build(with_path: bool = False):
+    """The SX Function ``contact_slip_midpoint`` of :func:`midpoint_slip`;
+    ``contact_slip_midpoint_path`` with the trial path as inputs ``start``, ``Dl``."""
+    names = _inputs(with_path)
+    sym = {name: ca.SX.sym(name, *_SHAPES[name]) for name in names}
     be = {key: sym[key + "_be"] for key in _OUTPUTS}
-    out = midpoint_slip(sym["P0"], sym["Dp"], sym["n"], sym["l"], sym["mu"], be, sym["turn"])
-    return ca.Function("contact_slip_midpoint", [sym[k] for k in _INPUTS],
-                       [out[k] for k in _OUTPUTS], list(_INPUTS), list(_OUTPUTS), {"cse": True})
+    path = (sym["start"], sym["Dl"]) if with_path else None
+    out = midpoint_slip(sym["P0"], sym["Dp"], sym["n"], sym["l"], sym["mu"], be, sym["turn"],
+                        path)
+    name = "contact_slip_midpoint" + ("_path" if with_path else "")
+    return ca.Function(name, [sym[k] for k in names], [out[k] for k in _OUTPUTS],
+                       list(names), list(_OUTPUTS), {"cse": True})
 
 
 @functools.lru_cache(maxsize=None)
-def _build_call():
+def _build_call(with_path: bool = False):
     """The rule evaluated only for a slipping foot, as one never-inline MX Function.
 
     A free, sticking or lifting foot (no slip from the backward-Euler step)
@@ -242,28 +261,31 @@ def _build_call():
     derivatives are those of :func:`_build`'s graph in either branch (its
     outputs equal the backward-Euler ones wherever the foot does not slip).
     """
-    full = _build()
+    full = _build(with_path)
+    names = _inputs(with_path)
     # forward-mode AD, as the contact step's conditional wrapper
     # (symcushion.contact): the same sums in the same order as the SX graph
     opts = {"ad_weight": 0, "ad_weight_sp": 0}
-    sym = [ca.MX.sym(name, *_SHAPES[name]) for name in _INPUTS]
-    keep = ca.Function("contact_slip_midpoint_keep", sym, sym[5:9], list(_INPUTS),
+    sym = [ca.MX.sym(name, *_SHAPES[name]) for name in names]
+    keep = ca.Function(full.name() + "_keep", sym, sym[5:9], list(names),
                        list(_OUTPUTS), opts)
-    switch = ca.Function.conditional("contact_slip_midpoint_switch", [keep, full], keep, opts)
+    switch = ca.Function.conditional(full.name() + "_switch", [keep, full], keep, opts)
     k_be, contact_be = sym[7], sym[8]
     slipping = ca.logic_and(contact_be > 0.5, ca.dot(k_be, k_be) > 0)
     out = switch(slipping, *sym)
     # never_inline: one compiled copy serves every leg and pass of a step
-    return ca.Function("contact_slip_midpoint_call", sym, out, list(_INPUTS), list(_OUTPUTS),
+    return ca.Function(full.name() + "_call", sym, out, list(names), list(_OUTPUTS),
                        dict(opts, never_inline=True))
 
 
-def midpoint_slip_call(P0, Dp, n, l, mu, be, turn=None):
-    """:func:`midpoint_slip` as a call node of the shared ``contact_slip_midpoint`` Function.
+def midpoint_slip_call(P0, Dp, n, l, mu, be, turn=None, path=None):
+    """:func:`midpoint_slip` as a call node of the shared ``contact_slip_midpoint`` Function
+    (``contact_slip_midpoint_path`` with a ``path``).
 
     Same arguments and returned dict; ``be`` is the dict of
     ``symcushion.contact.contact_step_call('implicit', ...)``.
     """
     turn = ca.DM.zeros(3, 3) if turn is None else turn
-    out = _build_call()(P0, Dp, n, l, mu, be["delta"], be["P"], be["k"], be["contact"], turn)
+    args = [P0, Dp, n, l, mu, be["delta"], be["P"], be["k"], be["contact"], turn]
+    out = _build_call(path is not None)(*args, *(() if path is None else path))
     return dict(zip(_OUTPUTS, out))

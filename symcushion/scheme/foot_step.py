@@ -196,20 +196,22 @@ class FeetStep(SplitAtSwitch):
 
         The rule weighs the slip direction between the force at the start of the
         slip and the end force, and takes the start from its trial path P₀ + α D_p l
-        at α = 0. On the memory law P₀ is the offset of the law linearised about
-        the end foot with the dampers' end rate (A3): it is not the start force,
-        and differs from it by the dampers' c(ẋ₁ − ẋ₀), O(1) in the step; a
-        sliding damped foot then slips along an O(1)-wrong mean direction, first
-        order over a slide. A foot in contact at the start has its stored force
-        F₀: the path is moved to start there, P₀ ← F₀ and l ← l + D_p⁻¹(P₀ − F₀),
-        which keeps the trial end force P₀ + D_p l and so the backward-Euler
-        step's outputs; the foot's δ is l − g of the original l.
+        at α = 0. On the memory law P₀ is the offset of the law linearised about the
+        end foot with the dampers' end rate (A3), not the start force: they differ by
+        the dampers' c(ẋ₁ − ẋ₀), and a sliding damped foot slipped along an
+        O(1)-wrong mean direction. A foot in contact at the start has its stored
+        force F₀: its path is F₀ + α(P_t − F₀), P_t = P₀ + D_p l the backward-Euler
+        trial force, so that step's outputs are kept. Given by its forces, the path
+        needs no D_p⁻¹, which on a flat stretch of the spring-back (constant force,
+        no axial stiffness) turned round-off into the step's values and derivatives
+        (docs/design-geometry.md, "A wrong derivative at the start").
         """
         F0 = leg.foot["force_body"]
         in_contact = leg.foot["contact"] > 0.5
-        start = ca.if_else(in_contact, F0, P0)
-        l_start = ca.if_else(in_contact, l + ca.solve(Dp, P0 - F0), l)
-        got = midpoint_slip_call(start, Dp, n_b, l_start, self.mu, out, turn)
+        Dl = ca.mtimes(Dp, l)
+        path = (ca.if_else(in_contact, F0, P0),
+                ca.if_else(in_contact, (P0 + Dl) - F0, Dl))           # (1.3): P_t − F₀
+        got = midpoint_slip_call(P0, Dp, n_b, l, self.mu, out, turn, path)
         got["delta"] = ca.if_else(got["contact"] > 0.5, l - got["k"], got["delta"])
         return got
 
