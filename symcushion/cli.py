@@ -404,6 +404,11 @@ def _cmd_design(args):
     res = run["result"]
     print(f"{study.name}: {res.return_status}, {res.iterations} iterations; "
           f"{run['seconds']['total']:.0f} s in all; wrote {out}")
+    failed = [w for w, c in (run.get("gradient") or {}).items() if not c.get("passed", True)]
+    if failed:
+        print(f"{study.name}: the gradient check failed at the {' and the '.join(failed)} "
+              "(see result.json, `gradient`)", file=sys.stderr)
+        return 1
     return 0 if res.success or res.return_status == "Maximum_Iterations_Exceeded" else 1
 
 

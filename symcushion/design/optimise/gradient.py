@@ -9,7 +9,8 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-__all__ = ["FD_STEP", "ROW_FLOOR", "FD_AGREEMENT", "NOISE_STEP", "NOISE_FACTOR"]
+__all__ = ["FD_STEP", "ROW_FLOOR", "FD_AGREEMENT", "NOISE_STEP", "NOISE_FACTOR", "GRADIENT_PASS",
+           "gradient_verdict"]
 
 #: Central-difference step on the *scaled* design variables (all O(1)):
 #: truncation ≈ h²·f‴ ≈ 1e-10, round-off ≈ ε·|f|/h ≈ 1e-11 relative.
@@ -37,6 +38,24 @@ NOISE_STEP = 1e-12
 #: The two difference quotients of a row may differ by this many times the
 #: row's measured round-off divided by the finer step.
 NOISE_FACTOR = 10.0
+#: A gradient check passes when AD and central differences agree to this over
+#: the smooth rows (``relative``) and on the objective row: the test suite's
+#: level for design gradients. Round-off and truncation at FD_STEP are about
+#: 1e-10 relative, so an agreement of 1e-5 leaves a wide margin for them and
+#: none for a wrong derivative (which shows as O(1), or as the 1e-4 of a
+#: derivative taken on the wrong side of a switch).
+GRADIENT_PASS = 1e-5
+
+
+def gradient_verdict(check: dict, where: str) -> tuple:
+    """(passed, one line for the log) of a :meth:`GradientCheck.check_gradient` result."""
+    worst = max(check["relative"], check.get("objective", 0.0))
+    passed = bool(worst <= GRADIENT_PASS)
+    line = (f"gradient check at {where}: AD vs central differences {check['relative']:.2g} "
+            f"over the smooth rows (objective {check.get('objective', 0.0):.2g}; "
+            f"{check['nonsmooth_rows']} of {check['rows']} rows not smooth within the step): "
+            + ("passed" if passed else f"FAILED (above {GRADIENT_PASS:g})"))
+    return passed, line
 
 
 class GradientCheck:

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 
 from symcushion.envelope.runner import run_envelope
 from symcushion.envelope.study import EnvelopeStudy, study_from_dict as envelope_from_dict
+from symcushion.design.optimise.gradient import gradient_verdict
 from symcushion.design.optimise.study import read_design_table, StudyFields
 from symcushion.model.scene import read_toml
 from symcushion.design.robust.problem import EnvelopeDesign
@@ -249,6 +250,7 @@ def run_robust_study(study: RobustStudy, out_dir=None, *, threads: int | None = 
         seconds["build"] = seconds.get("build", 0.0) + time.perf_counter() - t0
         if k == 1 and check_gradient:
             gradient_start = problem.check_gradient()
+            say(gradient_verdict(gradient_start, "the start")[1])
         say(f"{study.name}: 3/4 optimising {problem.n_variables} variables over {idx.size} "
             f"scenarios of {problem.horizon:g} s ({study.risk}"
             + (f", α = {study.alpha:g}" if study.risk == "cvar" else "") + ")"
@@ -280,6 +282,9 @@ def run_robust_study(study: RobustStudy, out_dir=None, *, threads: int | None = 
     gradient = {}
     if check_gradient:
         gradient = dict(start=gradient_start, optimum=problem.check_gradient(result.theta))
+        say(gradient_verdict(gradient["optimum"], "the optimum")[1])
+        for check in gradient.values():
+            check["passed"] = gradient_verdict(check, "")[0]
     before = after = None
     if verify:
         t0 = time.perf_counter()
