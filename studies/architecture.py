@@ -30,7 +30,7 @@ PARTS = {
     "scheme": (2, 1.8),
     "run": (3, 0.6), "compiled": (3, 2.6),
     "viz": (4, 0), "peers": (4, 0.75), "envelope": (4, 2.6), "studies": (4, 3.6),
-    "design": (5, 2.6),
+    "design": (5, 2.6), "cli_scenes": (5, 0.9),
     "reproduce": (6, 0.3), "check_files": (6, 1.3), "cli": (6, 2.4), "cli_parser": (6, 3.5),
 }
 #: The data flow: (from, to, what flows). Each is an import of ``to`` from ``from``.

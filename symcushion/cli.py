@@ -12,6 +12,7 @@ from pathlib import Path
 from symcushion.run.interrupts import (EXIT_BAD_INPUT, EXIT_ERRORS, EXIT_INTERRUPTED,
     EXIT_OUTPUT_EXISTS, EXIT_WARNINGS, Terminated, interrupt_code, signals_handled)
 from symcushion.cli_parser import build_parser
+from symcushion.cli_scenes import scene_of
 from symcushion.run.output_files import check_out_dir, check_output_file, claim_output
 
 __all__ = ["main"]
@@ -39,40 +40,11 @@ def _cmd_reproduce(args):
 
 
 
-#: Tables that make a TOML file a study (envelope or design), not a scene.
-STUDY_TABLES = ("study", "sampling", "ranges", "limits", "robust", "design")
-
-
-def _scene_of(data: dict, source: str, case):
-    """The scene of ``simulate``: a scene file's, or touchdown ``case`` of a study file's."""
-    from symcushion.model.scene import scene_from_dict
-
-    if not any(k in data for k in STUDY_TABLES):
-        if case is not None:
-            raise ValueError(f"`--case` = {case} needs an envelope or design study file; "
-                             f"{source!r} is a scene (it has none of the tables "
-                             f"{list(STUDY_TABLES)}). Drop `--case`.")
-        return scene_from_dict(data, source)
-    if case is None:
-        raise ValueError(f"{source!r} is a study file: give `--case N` to simulate one of "
-                         "its touchdowns (the row `case` of the cases.csv that `symcushion "
-                         "envelope` writes).")
-    from symcushion.envelope.cases import case_scene
-
-    if "design" in data:
-        from symcushion.design.robust.study import robust_study_from_dict
-        study = robust_study_from_dict(data, source).envelope
-    else:
-        from symcushion.envelope.study import study_from_dict
-        study = study_from_dict(data, source)
-    return case_scene(study, case)
-
-
 def _scene_and_overrides(args):
     """The scene of a ``simulate`` command with its command-line overrides applied."""
     from symcushion.model.scene import read_toml
 
-    scene = _scene_of(read_toml(args.scene), str(args.scene), getattr(args, "case", None))
+    scene = scene_of(read_toml(args.scene), str(args.scene), getattr(args, "case", None))
     overrides = {k: v for k, v in (("duration", args.duration), ("dt", args.dt),
                                    ("mu", args.mu), ("method", args.method)) if v is not None}
     for key, value in overrides.items():
@@ -257,7 +229,7 @@ def _cmd_plot(args):
         print(f"wrote {Path(args.result) / 'summary.png'}"
               + ("" if args.no_animation else " (no scene in run.json: no animation)"))
         return 0
-    scene = _scene_of(meta["scene"], str(Path(args.result) / "run.json"), meta.get("case"))
+    scene = scene_of(meta["scene"], str(Path(args.result) / "run.json"), meta.get("case"))
     name = (meta.get("scene_summary") or {}).get("name", scene.name)
     scene = scene.with_(name=name, **(meta.get("overrides") or {}))
     _figures(traj, scene, Path(args.result), args.frames)
@@ -333,6 +305,7 @@ def _set_max_iter(ipopt: dict, value):
 
 def _cmd_optimise(args):
     from symcushion.design.optimise import load_study
+    from symcushion.design.scene_file import write_optimised_scene
 
     study = load_study(args.study)
     _set_max_iter(study.ipopt, args.max_iter)
@@ -346,26 +319,12 @@ def _cmd_optimise(args):
           f"{pb.build_seconds:.1f} s)", flush=True)
     result = study.solve(progress=True)
     result.save_json(out)
-    scene_file = _write_optimised_scene(study, result, out)
+    scene_file = write_optimised_scene(study, result, out)
     print(result.message)
     if result.efficiency is not None:
         print(f"efficiency (ideal v²/2s + g over the achieved peak): {result.efficiency:.4f}")
     print(f"wrote {out} and {scene_file} ({result.timings['solve_seconds']:.1f} s)")
     return 0 if result.success and result.evaluation.feasible else 1
-
-
-def _write_optimised_scene(study, result, out) -> Path:
-    """``<out>_designed.toml``: the study's scene with the optimum written in."""
-    from symcushion.design.scene_file import write_designed_file
-    from symcushion.model.scene import scene_from_dict
-
-    path = Path(out).with_name(Path(out).stem + "_designed.toml")
-    data = dict(study.scene_data)
-    data["scene"] = dict(data.get("scene", {}), name=f"{study.name}_designed")
-    header = (f"The scene of {study.source} with the design of `symcushion optimise` written "
-              f"in:\n{result.message}\n\n  symcushion simulate {path.name} --out OUT")
-    return write_designed_file(path, data, study.problem, result.theta,
-                               lambda d: scene_from_dict(d, str(path)), header=header)
 
 
 #: What ``design`` writes into its folder (``symcushion.design.robust.report``).
@@ -376,6 +335,7 @@ DESIGN_FILES = ("result.json", "scenarios.csv", "before", "after", "before_after
 def _cmd_design(args):
     from symcushion.run.output_files import remove_stale
     from symcushion.design.robust.study import load_robust_study, run_robust_study
+    from symcushion.envelope.runner import dask_client
 
     study = load_robust_study(args.study)
     _set_max_iter(study.ipopt, args.max_iter)
@@ -386,14 +346,7 @@ def _cmd_design(args):
     out = check_out_dir(args.out if args.out is not None else Path("out") / study.name, "--out")
     if claim_output(out, DESIGN_FILES, overwrite=args.overwrite):
         remove_stale(out, DESIGN_FILES)        # a design takes minutes: no stale file meanwhile
-    client = None
-    if args.scheduler:
-        try:
-            from distributed import Client
-        except ImportError:
-            raise ImportError("--scheduler needs the optional extra: pip install "
-                              "'symcushion[dask]'.") from None
-        client = Client(args.scheduler)
+    client = dask_client(args.scheduler) if args.scheduler else None
     try:
         run = run_robust_study(study, out, threads=args.threads, client=client,
                                scheduler=args.scheduler, verify=not args.no_verify,
@@ -404,11 +357,8 @@ def _cmd_design(args):
     res = run["result"]
     print(f"{study.name}: {res.return_status}, {res.iterations} iterations; "
           f"{run['seconds']['total']:.0f} s in all; wrote {out}")
-    failed = [w for w, c in (run.get("gradient") or {}).items() if not c.get("passed", True)]
-    if failed:
-        print(f"{study.name}: the gradient check failed at the {' and the '.join(failed)} "
-              "(see result.json, `gradient`)", file=sys.stderr)
-        return 1
+    if not all(c.get("passed", True) for c in (run.get("gradient") or {}).values()):
+        return 1                       # a gradient check failed: its verdict line says where
     return 0 if res.success or res.return_status == "Maximum_Iterations_Exceeded" else 1
 
 

@@ -61,7 +61,7 @@ def build_parser(commands: dict) -> argparse.ArgumentParser:
                    help="output folder; results go to DIR/<scene name> (default: %(default)s)")
     p.add_argument("--case", type=int, default=None, metavar="N",
                    help="with an envelope or design study file: simulate its touchdown N "
-                        "(the row `case` of its cases.csv), as the envelope ran it")
+                        "(the row 'case' of its cases.csv), as the envelope ran it")
     p.add_argument("--duration", type=float, default=None, metavar="SECONDS",
                    help="simulated time in s (default: the scene's)")
     p.add_argument("--dt", type=float, default=None, metavar="SECONDS",

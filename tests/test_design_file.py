@@ -123,6 +123,16 @@ def test_toml_text_reads_back_to_the_same_values(data):
     assert tomllib.loads(toml_text(data)) == data
 
 
+def test_the_gradient_verdict_fails_a_check_above_its_level():
+    from symcushion.design.optimise.gradient import GRADIENT_PASS, gradient_verdict
+
+    check = dict(relative=3.6e-4, objective=1e-12, nonsmooth_rows=3, rows=180)
+    passed, line = gradient_verdict(check, "the start")
+    assert not passed and "FAILED (above 1e-05)" in line and "3 of 180 rows" in line
+    assert gradient_verdict(dict(check, relative=GRADIENT_PASS / 2), "x")[0]
+    assert not gradient_verdict(dict(check, relative=1e-9, objective=1e-3), "x")[0]
+
+
 def test_toml_text_refuses_what_toml_cannot_hold():
     with pytest.raises(TypeError, match=r"`a.b` = None has no TOML form"):
         toml_text({"a": {"b": None}})

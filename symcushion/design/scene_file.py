@@ -15,6 +15,7 @@ of its touchdowns). It must not solve, simulate or choose a design.
 from __future__ import annotations
 
 import copy
+from pathlib import Path
 
 import numpy as np
 
@@ -22,7 +23,8 @@ from symcushion.model.scene_data import symmetric_legs
 from symcushion.model.toml_text import toml_text
 from symcushion.run.output_files import atomic_write_text
 
-__all__ = ["designed_data", "write_designed_file", "DESIGN_TABLES", "MATCH_TOL"]
+__all__ = ["designed_data", "write_designed_file", "write_optimised_scene", "DESIGN_TABLES",
+           "MATCH_TOL"]
 
 #: Tables of a study file that only the design reads.
 DESIGN_TABLES = ("design", "robust")
@@ -206,3 +208,17 @@ def write_designed_file(path, data: dict, problem, theta, load, header: str = ""
     _check_built(scene, problem, theta, _leg_values(problem, theta),
                  _leg_geometry(problem, theta))
     return atomic_write_text(path, text)
+
+
+def write_optimised_scene(study, result, out) -> Path:
+    """``<out>_designed.toml`` beside ``out`` (the JSON of ``symcushion optimise``):
+    the design study's scene with the optimum written in, named ``<study>_designed``."""
+    from symcushion.model.scene import scene_from_dict
+
+    path = Path(out).with_name(Path(out).stem + "_designed.toml")
+    data = dict(study.scene_data)
+    data["scene"] = dict(data.get("scene", {}), name=f"{study.name}_designed")
+    header = (f"The scene of {study.source} with the design of `symcushion optimise` written "
+              f"in:\n{result.message}\n\n  symcushion simulate {path.name} --out OUT")
+    return write_designed_file(path, data, study.problem, result.theta,
+                               lambda d: scene_from_dict(d, str(path)), header=header)

@@ -34,7 +34,7 @@ from symcushion.envelope.study import (check_counts, CONDITION_DEFAULTS, Envelop
     sample_conditions)
 
 __all__ = ["PROGRESS_INTERVAL", "PROGRESS_LOG_INTERVAL", "BATCH_DIR", "run_envelope", "evaluate",
-           "write_result", "output_names"]
+           "dask_client", "write_result", "output_names"]
 
 #: Seconds between updates of the progress bar on a terminal.
 PROGRESS_INTERVAL = 0.5
@@ -384,6 +384,16 @@ def _run_local(tasks, todo, libraries, x0, p, dt, stop, threads: int, done):
             done(futures[fut], *fut.result())
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+def dask_client(address: str):
+    """A ``distributed.Client`` on the scheduler at ``address`` (the optional extra)."""
+    try:
+        from distributed import Client
+    except ImportError:
+        raise ImportError("--scheduler needs the optional extra: pip install "
+                          "'symcushion[dask]'.") from None
+    return Client(address)
 
 
 def _run_dask(study, tasks, todo, libraries, x0, mu, p, done, bar, scheduler,
