@@ -18,14 +18,11 @@ from symcushion.cli import main
 from symcushion.design.optimise import study_from_dict
 from symcushion.design.scene_file import designed_data, write_designed_file
 from symcushion.envelope.cases import case_scene
-from symcushion.envelope.runner import run_envelope
 from symcushion.envelope.study import study_from_dict as envelope_from_dict
 from symcushion.model.scene import read_toml, scene_from_dict
 from symcushion.model.toml_text import toml_text
-from symcushion.run.driver import simulate
 
 from test_geometry_design import GEOMETRY, PRACTICAL
-from test_robust import TINY, needs_cc, run  # noqa: F401  (the module's design run)
 
 #: Tables of an optimise study that a scene file does not have.
 OPTIMISE_TABLES = ("study", "scenario", "design", "limits", "solver")
@@ -141,40 +138,9 @@ def test_toml_text_refuses_what_toml_cannot_hold():
 
 
 # ---------------------------------------------------------------------------
-# the file `symcushion design` writes, and `simulate --case`
+# `simulate --case` (the compiled checks of designed.toml and of a case's run are in
+# tests/test_robust.py, beside the design run they reuse)
 # ---------------------------------------------------------------------------
-@needs_cc
-def test_the_design_writes_a_study_that_runs_its_optimum(run, tmp_path):  # noqa: F811
-    run, out = run
-    path = out / "designed.toml"
-    data = tomllib.loads(path.read_text())
-    assert "design" not in data and "robust" not in data
-    assert data["study"]["name"] == "tiny_design_designed"
-    study = envelope_from_dict(data, str(path))
-    again = run_envelope(study, progress=False, plots=False,
-                         cache_dir=tmp_path / "build", threads=2)
-    assert list(again.columns["class"]) == list(run["after"].columns["class"])
-    np.testing.assert_allclose(again.columns["max_stroke"], run["after"].columns["max_stroke"],
-                               rtol=1e-12, atol=0)
-
-
-@needs_cc
-def test_simulate_case_runs_the_envelope_s_touchdown(tmp_path):
-    data = copy.deepcopy(TINY)
-    for table in ("design", "robust"):
-        data.pop(table)
-    data["sampling"]["n"] = 6
-    study = envelope_from_dict(data, "tiny.toml")
-    res = run_envelope(study, progress=False, plots=False, cache_dir=tmp_path, threads=1)
-    for case in (1, 4):
-        scene = case_scene(study, case).with_(duration=res.columns["end_time"][case])
-        traj = simulate(scene, estimate=False)        # the run itself, not its error
-        assert np.max(np.abs(traj.stroke)) == pytest.approx(res.columns["max_stroke"][case],
-                                                            rel=1e-9)
-        assert np.min(traj.position[:, 2]) == pytest.approx(res.columns["min_height"][case],
-                                                            rel=1e-9)
-
-
 def test_simulate_case_refuses_a_scene_and_needs_a_case(tmp_path, capsys):
     assert main(["simulate", "studies/fig3.toml", "--case", "2", "--out", str(tmp_path)]) != 0
     assert "`--case` = 2 needs an envelope or design study file" in capsys.readouterr().err

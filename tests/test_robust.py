@@ -142,8 +142,11 @@ def test_apply_design_names_unknown_parameters():
 def run(tmp_path_factory):
     study = robust_study_from_dict(TINY, "tiny.toml")
     out = tmp_path_factory.mktemp("design")
-    return run_robust_study(study, out, threads=2, check_gradient=True,
-                            cache_dir=tmp_path_factory.mktemp("build"), progress=False), out
+    cache = tmp_path_factory.mktemp("build")
+    result = run_robust_study(study, out, threads=2, check_gradient=True, cache_dir=cache,
+                              progress=False)
+    result["cache"] = cache                     # the libraries built, for tests that reuse them
+    return result, out
 
 
 @needs_cc
@@ -354,3 +357,37 @@ def test_a_tipped_lander_fades_every_check_but_the_energy_one():
     assert float(upright(1.0, tilt)) == pytest.approx(0.0, abs=1e-12)    # lying at 90°
     lying = float(upright(1.0, tilt))
     assert lying * 2.5 + (1 - lying) * TIP_FADED == pytest.approx(TIP_FADED, abs=1e-9)
+
+
+@needs_cc
+def test_the_design_writes_a_study_that_runs_its_optimum(run):
+    """``designed.toml``: the study with the optimum written in runs the verification's
+    classes and strokes again (its scene named as the study's, so the library is reused)."""
+    import tomllib
+
+    run, out = run
+    data = tomllib.loads((out / "designed.toml").read_text())
+    assert "design" not in data and "robust" not in data
+    assert data["study"]["name"] == "tiny_design_designed"
+    data["scene"]["name"] = run["after"].study.scene.name
+    again = ev.run_envelope(ev.study_from_dict(data, "designed.toml"), progress=False,
+                            plots=False, cache_dir=run["cache"], threads=2)
+    assert list(again.columns["class"]) == list(run["after"].columns["class"])
+    np.testing.assert_allclose(again.columns["max_stroke"], run["after"].columns["max_stroke"],
+                               rtol=1e-12, atol=0)
+
+
+@needs_cc
+def test_simulate_case_runs_the_envelope_s_touchdown(run):
+    """``simulate STUDY --case N`` (``case_scene``) runs case N as the envelope ran it."""
+    from symcushion.envelope.cases import case_scene
+    from symcushion.run.driver import simulate
+
+    before = run[0]["before"]
+    for case in (1, 4):
+        scene = case_scene(before.study, case).with_(duration=before.columns["end_time"][case])
+        traj = simulate(scene, estimate=False)        # the run itself, not its error
+        assert np.max(np.abs(traj.stroke)) == pytest.approx(before.columns["max_stroke"][case],
+                                                            rel=1e-9)
+        assert np.min(traj.position[:, 2]) == pytest.approx(
+            before.columns["min_height"][case], rel=1e-9)
