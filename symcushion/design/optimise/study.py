@@ -77,7 +77,7 @@ def resolve_compiled(compiled: bool | None, say=None) -> bool:
     """Whether to evaluate the rollouts in compiled C: ``compiled``, or if None, gcc's presence.
 
     The compiled path is about ten times faster on the lander design
-    (docs/optimise.md, "Compiled rollouts and Jacobian"), so a study that
+    (docs/compiled-design.md), so a study that
     says nothing uses it wherever a C compiler is found (``$CC`` or gcc);
     without one it runs on CasADi's VM and ``say`` (e.g. print) is told why.
     """
