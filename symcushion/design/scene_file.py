@@ -174,7 +174,7 @@ def designed_data(data: dict, problem, theta) -> dict:
     return out
 
 
-def _check_built(scene, problem, theta, values, geometry):
+def _check_built(scene, problem, values, geometry):
     """Refuse a file whose lander is not the design's (a :class:`ValueError` naming the leg)."""
     if len(scene.legs) != len(problem.legs):
         raise ValueError(f"the written file has {len(scene.legs)} legs, the design "
@@ -205,8 +205,7 @@ def write_designed_file(path, data: dict, problem, theta, load, header: str = ""
     out = designed_data(data, problem, theta)
     text = toml_text(out, header)
     scene = load(tomllib.loads(text))
-    _check_built(scene, problem, theta, _leg_values(problem, theta),
-                 _leg_geometry(problem, theta))
+    _check_built(scene, problem, _leg_values(problem, theta), _leg_geometry(problem, theta))
     return atomic_write_text(path, text)
 
 
