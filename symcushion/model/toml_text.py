@@ -15,13 +15,15 @@ import re
 
 __all__ = ["toml_text"]
 
-_BARE_KEY = re.compile(r"^[A-Za-z0-9_-]+$")
+#: A key written bare; anything else is quoted (``fullmatch``: ``$`` would let a key end
+#: in a newline through).
+_BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
 
 
 def _key(k) -> str:
     if not isinstance(k, str):
         raise TypeError(f"TOML keys must be strings, got {k!r}.")
-    return k if _BARE_KEY.match(k) else _string(k)
+    return k if _BARE_KEY.fullmatch(k) else _string(k)
 
 
 _ESCAPES = {"\\": "\\\\", '"': '\\"', "\n": "\\n", "\t": "\\t", "\r": "\\r"}
