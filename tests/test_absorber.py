@@ -324,6 +324,32 @@ def test_the_kick_carries_the_crush_onset_of_a_reload_from_a_kept_set():
         assert abs(xl.get(X, "velocity")[2, -1] - exact) < 1e-4, dt
 
 
+def test_the_crush_onset_kick_does_not_hang_on_the_rounding_where_the_curves_meet():
+    """A progressive honeycomb (10⁶ N/m to 2 kN at 2 mm, then the shipped geometry
+    design's crush curve) with its spring-back curve: the two meet at x = 0, where
+    every touchdown starts, so the lower bound of (A1) bends there, and lo(0) is
+    0 or −2.3e-13 N by rounding. At Δt = 2 ms the touchdown step crosses the 2-mm
+    bend. Moving a knot the stroke never reaches (at 5 cm) by 1e-13 … 1e-10 of its
+    value left the velocity at 20 ms at one of two values 1.2e-2 m/s apart while the
+    kick's tangent was taken at x = 0 itself; now they agree to round-off, and with
+    the run at Δt = 1 ms to 2e-4 m/s."""
+    xs = [-0.3, -0.2, -0.1, -0.05, -0.02, -0.002, 0.0]
+    fs = [-3270.1948644656627, -2816.7024707988085, -2009.7668216159263,
+          -2003.1342342445987, -2001.3920122865748, -2000.0, 0.0]
+    unloading = {"type": "piecewise", "x": [-0.3, -0.01, 0.0],
+                 "f": [-390.1560562350704, -37.89019789948643, 0.0]}
+
+    def end_speed(f, dt):
+        S = {"type": "piecewise", "x": xs, "f": f, "unloading": unloading}
+        X, _ = _drop(S, 0.02, dt, gap=1.23e-3)
+        return state_layout(1).get(X, "velocity")[2, -1]
+
+    ends = [end_speed(fs[:3] + [fs[3] * (1 + rel)] + fs[4:], 2e-3)
+            for rel in np.geomspace(1e-13, 1e-10, 12)]
+    assert np.ptp(ends) < 1e-9, ends
+    assert abs(ends[0] - end_speed(fs, 1e-3)) < 2e-4
+
+
 def test_both_leg_schemes_give_the_axial_elements_force_law_along_a_step():
     """The hinged strut and the inverted tripod give the step the loading curve their
     axial element crushes along and its elastic line through a set (A1), (A5), for
