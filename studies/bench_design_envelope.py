@@ -1,7 +1,7 @@
 """How the envelope design's scenario evaluation scales with threads and Dask workers.
 
-Question: for ``studies/design_for_envelope.toml`` (24 scenarios of 1.5 s,
-11 design variables), how long does one evaluation of every scenario's
+Question: for ``studies/design_for_envelope.toml`` (its scenarios, horizon and
+design variables), how long does one evaluation of every scenario's
 ratios, and one of their Jacobian (what Ipopt calls once per iteration),
 take on one and two threads, and on a local Dask cluster of one and two
 single-threaded worker processes? All in one run, on the same scenarios and

@@ -52,12 +52,12 @@ LIMITS = (0.7, 0.75, 0.8, 0.9, 1.0, 1.1)
 #: The geometry's box: wide enough that the footprint limit bounds the stance.
 BOX = {"hinge_radius": dict(lower=0.4, upper=1.1), "length": dict(lower=0.55, upper=1.0),
        "splay": dict(lower_deg=0.0, upper_deg=30.0)}
-#: Ipopt iterations per design: run 5 reached its geometry's bounds in 30 and the
-#: risk changes by less than 1e-3 after about 35 (docs/design-geometry.md).
-MAX_ITER = 40
+#: Ipopt iterations per design; None: the design's own limit (200), each solve runs
+#: to Ipopt's tolerance (docs/optimise.md, "Convergence").
+MAX_ITER = None
 
 
-def design_data(limit: float, max_iter: int = MAX_ITER) -> dict:
+def design_data(limit: float, max_iter: int | None = MAX_ITER) -> dict:
     """The design study with footprint ``limit`` and the wide box."""
     data = read_toml(DESIGN, "design study")    # its name kept: one margins library serves all
     data["design"]["limits"]["footprint_radius"] = limit
@@ -65,7 +65,8 @@ def design_data(limit: float, max_iter: int = MAX_ITER) -> dict:
         for key in ("lower", "upper", "lower_deg", "upper_deg"):
             g.pop(key, None)
         g.update(BOX[g["quantity"]])
-    data["robust"]["ipopt"] = dict(data["robust"].get("ipopt", {}), max_iter=max_iter)
+    if max_iter is not None:
+        data["robust"]["ipopt"] = dict(data["robust"].get("ipopt", {}), max_iter=max_iter)
     return data
 
 
@@ -89,7 +90,7 @@ def verify(data: dict, source: str, cache) -> dict:
                 counts={c: int(n) for c, n in result.counts().items()})
 
 
-def solve_point(limit: float, out: Path, example: dict, cache, max_iter: int = MAX_ITER,
+def solve_point(limit: float, out: Path, example: dict, cache, max_iter: int | None = MAX_ITER,
                 n: int | None = None) -> dict:
     """Design for one footprint limit and verify it; read back if already done."""
     folder = out / f"R_{limit:.2f}"
@@ -218,7 +219,8 @@ def main(argv=None):
     ap.add_argument("--limits", type=float, nargs="+", default=list(LIMITS))
     ap.add_argument("--out", type=Path, default=Path("out/pareto_footprint"))
     ap.add_argument("--build-dir", type=Path, default=Path("build"))
-    ap.add_argument("--max-iter", type=int, default=MAX_ITER, help="Ipopt iterations per design")
+    ap.add_argument("--max-iter", type=int, default=MAX_ITER,
+                    help="Ipopt iterations per design (default: the study's, 200)")
     ap.add_argument("--n", type=int, default=None,
                     help="touchdowns of each verification (default the example's 10,000)")
     ap.add_argument("--figures", type=Path, default=FIGURES, help="where the figure and CSV go")

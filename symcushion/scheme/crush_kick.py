@@ -25,10 +25,11 @@ __all__ = ["TANGENT_INSET", "crush_kick"]
 #: as the loading curve's (10⁶ N/m on the example lander) or the unloading
 #: curve's (3.8·10³ N/m) by the last bit of lo(0), which every knot value
 #: moves, so a touchdown's kick jumped by 0.28 N·s (277 N over the 1-ms step)
-#: when a design moved a knot far from the stroke by 1e-5 of its range. A bend
-#: closer to an end than ι of the step is taken as at the end: its share of
-#: the kick, θ(1 − θ)|k₀ − k₁||x₁ − x₀|/2 per unit h, is then below
-#: 5e-7 × 10⁶ N/m × 3 mm ≈ 1.5e-3 N (1.5e-6 N·s per 1-ms step) on that lander.
+#: when a design moved the knot at 5 cm, beyond that step's stroke, by 5e-7 of
+#: its scale. A bend closer to an end than ι of the step is taken as at the
+#: end: its share of the kick, θ(1 − θ)|k₀ − k₁||x₁ − x₀|/2 per unit h, is
+#: then below 5e-7 × 10⁶ N/m × 3 mm ≈ 1.5e-3 N (1.5e-6 N·s per 1-ms step) on
+#: that lander.
 TANGENT_INSET = 1e-6
 
 
