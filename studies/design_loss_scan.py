@@ -62,14 +62,14 @@ def scan(study_file: Path, design_file, inset: float, build: Path, horizon=None,
     crush_kick.TANGENT_INSET = inset          # before any Function is built
     from symcushion.design.robust.risk import saturate
     from symcushion.design.robust.margins import CHECKS
-    from symcushion.design.robust.study import _round_problem
+    from symcushion.design.robust.study import scenario_problem
     from symcushion.envelope.runner import run_envelope
 
     study = load(study_file, horizon, rest)
     pool = run_envelope(study.envelope.with_(n=study.pool, seed=study.pool_seed),
                         cache_dir=build, progress=False, plots=False)
-    problem, _ = _round_problem(study, pool, dict(threads=None, client=None, cache_dir=build,
-                                                  progress=False), lambda msg: None)
+    problem, _ = scenario_problem(study, pool, dict(threads=None, client=None, cache_dir=build,
+                                                    progress=False))
     if design_file is None:
         w0 = problem.initial / problem.scale
     else:

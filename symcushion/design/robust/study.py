@@ -40,7 +40,8 @@ from symcushion.design.robust.select import (ANY_DEPTH, DEFAULT_FAIL_SHARE, DEFA
     left_out, select_scenarios)
 from symcushion.run.output_files import atomic_write_text, jsonable
 
-__all__ = ["RobustStudy", "robust_study_from_dict", "load_robust_study", "run_robust_study"]
+__all__ = ["RobustStudy", "robust_study_from_dict", "load_robust_study", "run_robust_study",
+           "scenario_problem"]
 
 #: Pool size and seed when ``[robust]`` does not give them.
 DEFAULT_POOL = 2000
@@ -246,7 +247,7 @@ def run_robust_study(study: RobustStudy, out_dir=None, *, threads: int | None = 
             seconds["pool"] += time.perf_counter() - t0
         theta0 = None if best is None else best["result"].theta
         t0 = time.perf_counter()
-        problem, idx = _round_problem(study, pool, solver, say)
+        problem, idx = scenario_problem(study, pool, solver, say)
         seconds["build"] = seconds.get("build", 0.0) + time.perf_counter() - t0
         if k == 1 and check_gradient:
             gradient_start = problem.check_gradient()
@@ -309,8 +310,11 @@ def run_robust_study(study: RobustStudy, out_dir=None, *, threads: int | None = 
     return run
 
 
-def _round_problem(study: RobustStudy, pool, solver: dict, say):
-    """Scenarios selected from a classified pool, and their design problem."""
+def scenario_problem(study: RobustStudy, pool, solver: dict, say=lambda msg: None):
+    """(problem, indices): the scenarios ``symcushion design`` selects from a classified
+    ``pool`` (an envelope result of the study's pool) and their :class:`EnvelopeDesign`;
+    ``solver`` holds its ``threads``, ``client``, ``cache_dir`` and ``progress``, ``say``
+    prints the selection."""
     idx = select_scenarios(pool.columns, study.scenarios, fail_share=study.fail_share,
                            worst=study.worst_margin)
     if idx.size == 0:
