@@ -39,6 +39,12 @@ DEFAULT_TOLERANCES = {
     "energy": 1e-2,
     # units of the shortest leg: see BODY_TOLERANCE.
     "body": BODY_TOLERANCE,
+    # of the normal force N: a foot's end force whose tangential part exceeds
+    # μN by more than this. The memory law's force at the end foot (A1)-(A5)
+    # exceeds it by 3e-4 N in a measured slide, and by 1.7 N (|F_t| = 4.4 μN)
+    # where the step took a wrong branch (docs/absorbers.md, "Open"); 1e-2
+    # lies between.
+    "friction_cone": 1e-2,
 }
 
 #: Smallest energy scale (J), so that a scene at rest in zero gravity still
@@ -67,6 +73,10 @@ class RunMonitor:
         stroke) plus ``tolerances['energy']`` of the energy scale.
     ``off_terrain`` (error)
         a foot in contact off a terrain's grid.
+    ``friction_cone`` (warning)
+        a foot in contact whose end force has a tangential part above μN by
+        more than ``tolerances['friction_cone']`` of N: Coulomb's law does not
+        hold there, and the run after it is not to be trusted.
 
     Parameters
     ----------
@@ -153,6 +163,7 @@ class RunMonitor:
             return out
         self._check_geometry(out, t, X)
         self._check_end_stops(out, t, Y)
+        self._check_friction_cone(out, t, Y)
         gain = self._energy(X) - self._energy0
         if np.max(gain) > self._allowed:
             i = int(np.argmax(gain > self._allowed))
@@ -181,6 +192,27 @@ class RunMonitor:
                           f"{-limit:g} m): the loads past it are the stop's, not the "
                           "absorber's; give it more stroke or a higher force.", leg=j,
                           value=-stroke[i])
+
+    def _check_friction_cone(self, out, t, Y):
+        """A foot in contact whose end force leaves the friction cone μN (1.4)."""
+        yl = output_layout(len(self.scene.legs))
+        if Y.shape[0] != yl.size:
+            return
+        tol, mu = self.tolerances["friction_cone"], self.scene.mu
+        for j in range(len(self.scene.legs)):
+            F, n = yl.get(Y, "force", j), yl.get(Y, "normal", j)
+            N = np.sum(F * n, axis=0)
+            tangential = np.linalg.norm(F - N * n, axis=0)
+            bad = (yl.get(Y, "in_contact", j).ravel() > 0.5) & (N > 0) \
+                & (tangential > (mu + tol) * N)
+            if bad.any():
+                i = int(np.argmax(bad))
+                self._add(out, "friction_cone", "warning", t[i], f"the foot of leg {j} ended "
+                          f"the step at t = {t[i]:.6g} s outside the friction cone: tangential "
+                          f"force {tangential[i]:.4g} N against μN = {mu * N[i]:.4g} N "
+                          f"(μ = {mu:g}); the step took a wrong branch there (docs/absorbers.md, "
+                          "\"Open\") and the run after it is not to be trusted.", leg=j,
+                          value=tangential[i] / N[i])
 
     def _check_geometry(self, out, t, X):
         scene, tol = self.scene, self.tolerances["penetration"]
